@@ -1,0 +1,30 @@
+// §3.3 cylinder fit in the table frame, and the truncated cone (beyond the paper).
+#pragma once
+
+#include "tabletop_shapes/core/normals.h"
+
+namespace tabletop_shapes {
+
+struct Circle {
+  Eigen::Vector2f center = Eigen::Vector2f::Zero();
+  float radius = 0.0f;
+  float rmse = 0.0f;  // RMS geometric distance of the points to the circle
+  bool ok = false;
+};
+
+// Algebraic circle by OLS, eq. 10-16 (biased on short arcs: use it as the initial guess).
+Circle fitCircleAlgebraic(const std::vector<Eigen::Vector2f>& points);
+// Geometric least squares (Gauss-Newton / Levenberg-Marquardt on |p - c| - r).
+Circle refineCircleGeometric(const std::vector<Eigen::Vector2f>& points, const Circle& initial,
+                             int max_iterations);
+
+// Axis = table normal. center = centre of the solid (half the height above the table).
+ShapeFit fitCylinder(const NormalCloud& object, const Plane& table, const CylinderParams& params);
+// Radius linear in height above the table. Always returns a Cone (ok when the fit worked).
+ShapeFit fitCone(const NormalCloud& object, const Plane& table, const CylinderParams& cylinder,
+                 const ConeParams& params);
+// A round object: a Cone when the slope is significant given the noise, else a Cylinder.
+ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
+                        const CylinderParams& cylinder, const ConeParams& cone);
+
+}  // namespace tabletop_shapes

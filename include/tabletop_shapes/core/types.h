@@ -1,0 +1,126 @@
+// Shared value types and per-stage parameter structs of the ROS-free core.
+// Kept light: no PCL algorithm headers here, only the cloud container.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tabletop_shapes {
+
+// The core works on XYZ after preprocessing; colour is not used by any paper step.
+using Point = pcl::PointXYZ;
+using Cloud = pcl::PointCloud<Point>;
+using CloudPtr = Cloud::Ptr;
+using CloudConstPtr = Cloud::ConstPtr;
+
+constexpr double kPi = 3.14159265358979323846;
+inline float degToRad(float deg) { return deg * static_cast<float>(kPi) / 180.0f; }
+
+// Plane n.p + d = 0 with |n| = 1. For the table, n points "up" (towards the camera side).
+struct Plane {
+  Eigen::Vector3f normal{0.0f, 0.0f, 1.0f};
+  float d = 0.0f;
+  float signedDistance(const Eigen::Vector3f& p) const { return normal.dot(p) + d; }
+  Eigen::Vector4f coefficients() const { return {normal.x(), normal.y(), normal.z(), d}; }
+};
+
+// ---- stage parameters: SPEC.md defaults, one struct per stage ----
+
+// §2.1
+struct PreprocessParams {
+  float leaf_size = 0.005f;  // voxel edge [m]; <= 0 disables the voxel grid
+  float max_range = 3.0f;    // keep points with |p| <= max_range [m]
+};
+
+// §2.2-2.4
+struct TableParams {
+  Eigen::Vector3f up{0.0f, -1.0f, 0.0f};  // world up in the cloud frame (level optical frame)
+  float up_tolerance_deg = 10.0f;         // plane normal within this angle of up
+  float distance_threshold = 0.015f;      // RANSAC inlier distance [m]
+  int max_iterations = 500;               // RANSAC iterations per plane
+  int min_inliers = 500;                  // a support plane needs at least this many points
+  int max_planes = 4;                     // horizontal planes examined (table, floor, shelves)
+  float hull_margin = 0.10f;              // keep objects at least this far inside the hull [m]
+  float min_height = 0.008f;              // object points start this far above the plane [m]
+  float max_height = 0.5f;                // and end this far above it [m]
+  int outlier_k = 50;                     // §2.4 neighbours
+  float outlier_alpha = 1.0f;             // §2.4 keep mean-distance < mu + alpha*sigma
+};
+
+// §2.5
+struct ClusteringParams {
+  float tolerance = 0.02f;  // d_th [m]
+  int min_size = 100;
+  int max_size = 200000;
+};
+
+// §3: normals by moving least squares
+struct NormalParams {
+  float search_radius = 0.02f;  // [m]
+  int polynomial_order = 2;
+};
+
+// §3.1
+struct PredictorParams {
+  int k = 3;                      // neighbours in eq. 1
+  float threshold = 0.07f;        // above -> cylinder, else cube
+  float section_low = 0.25f;      // representative middle section of the sorted d(p)
+  float section_high = 0.75f;
+  float fallback_rmse = 0.004f;   // a guessed model fitting worse than this [m] -> try the others
+};
+
+// §3.2
+struct CubeParams {
+  float distance_threshold = 0.007f;          // plane inlier distance [m]
+  float angle_threshold = static_cast<float>(kPi / 5);   // point normal vs plane normal
+  float min_support_fraction = 0.10f;         // plane needs >= 10 % of the points
+  float min_plane_angle = static_cast<float>(kPi / 6);   // reject planes closer than this
+  int max_planes = 3;
+  int ransac_iterations = 300;
+};
+
+// §3.3 and the truncated cone (beyond the paper)
+struct CylinderParams {
+  int max_refine_iterations = 50;   // geometric (Gauss-Newton) circle refinement
+  float min_radius = 0.005f;        // [m]
+  float max_radius = 0.3f;          // [m]
+  float top_margin = 0.01f;         // side-wall points end this far below the top [m] (rim
+                                    // blended into the top disc by smoothing)
+};
+
+struct ConeParams {
+  float min_slope = 0.02f;          // |dr/dh| below this is a cylinder
+  float slope_sigma = 3.0f;         // slope must exceed this many standard errors
+};
+
+// ---- results ----
+
+enum class ShapeType { Cube, Cylinder, Cone, Unknown };
+const char* shapeTypeName(ShapeType type);
+
+// One fitted object. Frame: the cloud's. `center` is the centre of the solid.
+struct ShapeFit {
+  ShapeType type = ShapeType::Unknown;
+  bool ok = false;
+  std::string reason;  // why the fit failed (ok == false)
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();
+  // Cube: box axes (x, y, z edges = dimensions). Cylinder / cone: z = axis, pointing up.
+  Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
+  Eigen::Vector3f dimensions = Eigen::Vector3f::Zero();  // cube edges [m]
+  float radius = 0.0f;         // cylinder [m]
+  float radius_bottom = 0.0f;  // cone, at the table [m]
+  float radius_top = 0.0f;     // cone [m]
+  float height = 0.0f;         // cylinder / cone [m]
+  int points = 0;              // points used by the fit
+  float rmse = 0.0f;           // fit residual RMS [m]
+  int faces_seen = 0;          // cube only: 1-3
+  Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
+};
+
+}  // namespace tabletop_shapes
