@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
               -DCATKIN_ENABLE_TESTING=ON
 
-.PHONY: deps build test format clean
+.PHONY: deps build test benchmark-accuracy format clean
 
 deps:
 	@scripts/install-deps
@@ -23,6 +23,12 @@ build: deps
 test: build
 	cmake --build $(BUILD_DIR) --target tests -- -j$(JOBS)
 	cd $(BUILD_DIR) && ctest --output-on-failure
+
+# The paper's Tables 2-3 / Fig. 12 on rendered scenes and segmentation scores on real OSD
+# scenes (../shared/data when present, else the copies in test/data); plots in benchmark-output/.
+OSD_DIR ?= $(firstword $(wildcard ../shared/data/osd-learn) test/data)
+benchmark-accuracy: build
+	$(BUILD_DIR)/devel/lib/tabletop_shapes/benchmark_accuracy --osd $(OSD_DIR) --out benchmark-output
 
 format:
 	clang-format -i $$(git ls-files '*.h' '*.cpp')

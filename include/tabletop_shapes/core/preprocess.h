@@ -23,10 +23,18 @@ class Preprocessor {
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out);
 
   PreprocessParams params_;
-  struct VoxelEntry;
-  std::vector<VoxelEntry> voxels_;                      // valid points' voxels, reused
-  std::vector<std::pair<uint64_t, uint32_t>> keyed_;    // (voxel key, point index), reused
-  std::vector<std::pair<uint64_t, uint32_t>> scratch_;  // radix sort buffer, reused
+  // Open-addressing hash from voxel key to the voxel's running sum; reused between frames.
+  struct VoxelSlot {
+    uint64_t key;
+    uint32_t voxel;  // index into sums_
+  };
+  struct VoxelSum {
+    uint64_t key;
+    double x, y, z;
+    uint32_t count;
+  };
+  std::vector<VoxelSlot> slots_;
+  std::vector<VoxelSum> sums_;  // in order of first appearance: deterministic output
 };
 
 }  // namespace tabletop_shapes

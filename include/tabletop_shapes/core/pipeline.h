@@ -1,0 +1,51 @@
+// The whole chain of the paper in one call: preprocess -> table -> clustering -> shapes.
+// Used by the estimate_shapes command and the benchmarks; the nodelets call the stages one by
+// one instead, so that each runs in its own nodelet.
+#pragma once
+
+#include "tabletop_shapes/core/preprocess.h"
+#include "tabletop_shapes/core/shape_estimator.h"
+#include "tabletop_shapes/core/table_segmentation.h"
+
+namespace tabletop_shapes {
+
+struct PipelineParams {
+  PreprocessParams preprocess;
+  TableParams table;
+  ClusteringParams clustering;
+  ShapeEstimatorParams shapes;
+  bool auto_up = false;  // estimate "up" from the scene instead of table.up
+};
+
+struct StageTimes {
+  double preprocess_ms = 0, table_ms = 0, clustering_ms = 0, shapes_ms = 0, total_ms = 0;
+};
+
+struct SceneResult {
+  Eigen::Vector3f up = Eigen::Vector3f::Zero();  // the up direction used
+  TableResult table;
+  std::vector<CloudPtr> clusters;  // the object clusters, largest first
+  std::vector<ShapeFit> objects;   // one per cluster, same order; unfitted: Unknown + reason
+  StageTimes times;
+};
+
+class Pipeline {
+ public:
+  explicit Pipeline(const PipelineParams& params = {});
+  void setParams(const PipelineParams& params);
+  const PipelineParams& params() const { return params_; }
+
+  SceneResult process(const pcl::PointCloud<pcl::PointXYZ>& cloud);
+  SceneResult process(const pcl::PointCloud<pcl::PointXYZRGB>& cloud);
+
+ private:
+  template <typename PointT>
+  SceneResult processImpl(const pcl::PointCloud<PointT>& cloud);
+
+  PipelineParams params_;
+  Preprocessor preprocessor_;
+  ShapeEstimator estimator_;
+  CloudPtr filtered_;  // reused between frames
+};
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,31 @@
+// §3: one cluster in, one fitted solid out. Normals by MLS, the predictor's guess first; when
+// the guess fits badly the other models are tried and the lowest residual wins (§3.1).
+#pragma once
+
+#include "tabletop_shapes/core/types.h"
+
+namespace tabletop_shapes {
+
+struct ShapeEstimatorParams {
+  NormalParams normals;
+  PredictorParams predictor;
+  CubeParams cube;
+  CylinderParams cylinder;
+  ConeParams cone;
+};
+
+class ShapeEstimator {
+ public:
+  explicit ShapeEstimator(const ShapeEstimatorParams& params = {}) : params_(params) {}
+  void setParams(const ShapeEstimatorParams& params) { params_ = params; }
+  const ShapeEstimatorParams& params() const { return params_; }
+
+  // Never throws: a cluster no model fits comes back as Unknown, ok == false, with the reason
+  // of every model tried; its center is the centroid of the cluster.
+  ShapeFit estimate(const CloudConstPtr& cluster, const Plane& table) const;
+
+ private:
+  ShapeEstimatorParams params_;
+};
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,44 @@
+// Conversion logic of the ROS layer, apart from the plumbing: core results -> messages, the
+// output-frame transform, and the rviz markers. No topics or parameters here.
+#pragma once
+
+#include "tabletop_shapes/core/table_segmentation.h"
+#include "tabletop_shapes/core/types.h"
+#include "tabletop_shapes/ros/object_messages.h"
+
+#include <Eigen/Geometry>
+#include <std_msgs/Header.h>
+#include <tabletop_shapes/Objects.h>
+#include <tabletop_shapes/Table.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <string>
+
+namespace tabletop_shapes {
+namespace bridge {
+
+// The table message of one frame; inliers == 0 (and no hull) when no table was found, so that
+// every frame has one table message to pair the object points with.
+Table toTableMsg(const TableResult& table, const std_msgs::Header& header);
+inline bool tableFound(const Table& table) { return table.inliers > 0; }
+Plane planeFromMsg(const Table& table);
+
+// Re-expresses everything in `objects` (poses, table plane and hull, unfitted centroids) in
+// `target_frame`, given the transform target <- current frame; every header gets the frame.
+void transformObjects(const Eigen::Isometry3d& target_from_source,
+                      const std::string& target_frame, Objects& objects);
+
+// The markers of one frame: per object a translucent solid coloured by type (namespace
+// "solids") and a label with type and dimensions in cm ("labels"); the table hull as a line
+// strip ("table"). Ids 0..n-1 in object order; ids n..previous_count-1 of both namespaces
+// are deleted, as is the table strip when there is no table. Returns the object count.
+size_t buildMarkers(const Objects& objects, size_t previous_count,
+                    visualization_msgs::MarkerArray& markers);
+
+// "cube 15.0 x 9.5 x 5.0 cm" and the like.
+std::string labelText(const Cube& cube);
+std::string labelText(const Cylinder& cylinder);
+std::string labelText(const Cone& cone);
+
+}  // namespace bridge
+}  // namespace tabletop_shapes

@@ -1,0 +1,66 @@
+// Per-stage bookkeeping shared by the nodelets: processing time per frame and skipped frames,
+// reported as diagnostic_msgs/DiagnosticArray on /diagnostics once per second, and a check
+// that clouds really travel between the nodelets without a copy (see markPublished).
+#pragma once
+
+#include <boost/shared_ptr.hpp>
+#include <ros/ros.h>
+
+#include <chrono>
+#include <mutex>
+#include <string>
+
+namespace tabletop_shapes {
+namespace bridge {
+
+// Zero-copy bookkeeping: every cloud a nodelet of this library publishes is remembered (weakly,
+// the last few dozen). A subscriber in the same process that receives the very same object
+// got it by pointer; a cloud that was serialised and deserialised on the way (another process,
+// or a type mismatch) is a different object. Process-wide, thread-safe.
+void markPublished(const boost::shared_ptr<const void>& cloud);
+bool wasPublishedInProcess(const void* cloud);
+
+class StageMonitor {
+ public:
+  // `name`: the nodelet's name (the diagnostic status is "<name>: processing").
+  StageMonitor(ros::NodeHandle& node, const std::string& name);
+
+  // Counts a cloud received from the previous stage as shared (zero-copy) or copied.
+  void countInput(const void* cloud);
+  // One frame fully processed in `milliseconds`.
+  void frameDone(double milliseconds, size_t points_in, size_t points_out);
+  // A frame dropped without output (missing transform, invalid cloud), with the reason.
+  void frameSkipped(const std::string& reason);
+
+ private:
+  void publish(const ros::SteadyTimerEvent&);
+
+  std::string name_;
+  ros::Publisher publisher_;
+  ros::SteadyTimer timer_;
+  std::mutex mutex_;
+  // totals
+  uint64_t frames_ = 0, skipped_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
+  double last_ms_ = 0.0;
+  size_t last_points_in_ = 0, last_points_out_ = 0;
+  std::string last_skip_reason_;
+  // since the last report
+  uint64_t window_frames_ = 0, window_skipped_ = 0;
+  double window_sum_ms_ = 0.0, window_max_ms_ = 0.0;
+};
+
+// Wall-clock stopwatch in milliseconds.
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  double milliseconds() const {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_)
+        .count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace bridge
+}  // namespace tabletop_shapes

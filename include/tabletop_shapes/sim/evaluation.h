@@ -1,0 +1,57 @@
+// Scoring the pipeline against ground truth: rendered scenes (known solids) and labelled real
+// scenes (OSD per-point labels). Shared by the accuracy benchmark and the accuracy tests.
+#pragma once
+
+#include "tabletop_shapes/core/pipeline.h"
+#include "tabletop_shapes/sim/scene_renderer.h"
+
+namespace tabletop_shapes {
+namespace sim {
+
+// Eq. 17: |estimate - truth| / truth * 100 %.
+double relativeErrorPercent(double estimate, double truth);
+double percentile(std::vector<double> values, double fraction);  // 0.5 = median; NaN if empty
+
+double volume(const ShapeFit& fit);               // of the fitted solid [m^3]; 0 if not ok
+double volume(const GroundTruthObject& object);  // [m^3]
+
+// A matched pair of a true object and a detection (indices into the two lists).
+struct Match {
+  int truth = -1;
+  int detection = -1;
+  double center_distance = 0.0;
+};
+// Greedy, closest pairs first, each side used once, centres closer than max_distance.
+std::vector<Match> matchByCenter(const std::vector<GroundTruthObject>& truth,
+                                 const std::vector<ShapeFit>& detections, double max_distance);
+
+// One compared measure: e.g. "length" of a box, "radius" of a cylinder.
+struct Measure {
+  std::string name;
+  double estimate = 0.0, truth = 0.0, error_percent = 0.0;
+};
+// The measures of the paper's Tables 2-3 for a true object and its fit. Boxes: length, width,
+// height (edges sorted length >= width >= height on both sides), volume. Cylinders: radius,
+// height, volume. Cones: radius_bottom, radius_top, height, volume. A round object fitted by
+// the other round model is compared through its radii (a cylinder's radius stands for both
+// radii of a cone, a cone's mean radius for a cylinder's); a box against a round fit (or the
+// reverse) gets only its volume compared.
+std::vector<Measure> compareToTruth(const GroundTruthObject& truth, const ShapeFit& fit);
+
+// ---- labelled real scenes (OSD: label 1-9 table, label / 10 - 1 = object index) ----
+struct LabelledScore {
+  double table_precision = 0.0, table_recall = 0.0;    // per point, vs labels 1-9
+  double object_precision = 0.0, object_recall = 0.0;  // per point, vs labels >= 10
+  int labelled_objects = 0;  // objects with at least min_object_points points
+  int objects_found_whole = 0;  // of those: one cluster holds most of it, and mostly it
+  std::vector<std::string> types;  // the types given to the clusters
+};
+// `cloud` is the raw labelled cloud given to the pipeline, `result` what it found;
+// a raw point belongs to the table when it lies within `table_distance` of the plane and inside
+// the hull, to a cluster when a cluster point is within `cluster_distance` of it.
+LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
+                                 const SceneResult& result, int min_object_points = 500,
+                                 float table_distance = 0.015f, float cluster_distance = 0.01f);
+
+}  // namespace sim
+}  // namespace tabletop_shapes

@@ -1,0 +1,218 @@
+// Rendered Kinect-v1-like test scenes: objects (boxes, cylinders, truncated cones) standing on a
+// table, ray-cast into an organised 640x480 pcl::PointXYZRGB cloud in the camera OPTICAL frame
+// (x right, y down, z forward; NaN = no return), with exact ground truth in the same frame.
+// ROS-free (PCL container + Eigen + std). Used by tests, the accuracy benchmark and recordings.
+//
+// World frame: z up, floor at z = 0, table top centred above the origin, its long edge along x.
+// Camera: level (no roll), looking at the objects' centre on the table top from `distance`,
+// `tilt_deg` below level, `yaw_deg` the heading of the viewing direction about world z
+// (yaw 0: looking along +x). Its height follows from distance and tilt.
+//
+// Sensor model (NoiseModel; every effect has a switch and a strength; NoiseModel::noiseless()
+// turns everything off, so that each valid point lies exactly on a scene surface). Effects are
+// applied to the depth image z(u, v) in this order, then every pixel is back-projected through
+// its own pixel centre (x = (u - cx) z / fx), so a depth error moves the point along its ray:
+//  1. lateral noise: the ray of each pixel at a surface change (a neighbour in its 3x3 sees
+//     another surface or a depth jump > flying_min_jump) passes through a point jittered around
+//     the pixel centre by N(0, lateral_sigma_px) in u and v, so depth edges are ragged by a
+//     fraction of a pixel as with the structured-light correlation window (on a smooth surface
+//     the jitter would only add sub-millimetre depth error, so it is skipped there);
+//  2. flying pixels: a pixel whose clean depth differs from a 4-neighbour's by more than
+//     flying_min_jump becomes, with probability flying_pixel_fraction, a point at a depth
+//     drawn uniformly between the foreground and the background depth;
+//  3. axial noise along the ray, Gaussian with sigma(z) = axial_sigma_base +
+//     axial_sigma_quadratic * (z - axial_reference_range)^2 (Nguyen, Izadi, Lovell 2012:
+//     1.2 mm + 1.9 mm * (z - 0.4 m)^2 for surfaces within ~60 deg of facing the camera);
+//  4. disparity quantisation: disparity d = fx * baseline / z is rounded to multiples of
+//     disparity_step_px (1/8 px on the Kinect, baseline 0.075 m), z = fx * baseline / d, which
+//     gives depth steps of z^2 * step / (fx * baseline): 2.9 mm at 1 m, 11.6 mm at 2 m;
+//  5. missing returns: at grazing incidence (angle between the ray and the surface normal above
+//     max_incidence_deg) and random dropout with probability dropout_probability per pixel;
+//  6. range limits: no return outside [min_range, max_range] (Kinect v1: ~0.45 .. ~5 m).
+// Random numbers: one std::mt19937 seeded with SceneSpec::seed, drawn in a fixed order, so the
+// same spec always renders the same cloud.
+#pragma once
+
+#include "tabletop_shapes/core/types.h"
+
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace tabletop_shapes {
+namespace sim {
+
+// Kinect v1 depth camera, VGA. Principal point at the image centre.
+struct CameraIntrinsics {
+  int width = 640;
+  int height = 480;
+  float fx = 575.8f;
+  float fy = 575.8f;
+  float cx = 319.5f;
+  float cy = 239.5f;
+};
+
+// See the file comment for the meaning and the order of the effects.
+struct NoiseModel {
+  bool enabled = true;  // master switch; false = noiseless (range limits still apply)
+
+  bool lateral_noise = true;
+  float lateral_sigma_px = 0.3f;  // ray jitter around the pixel centre [px]
+
+  bool flying_pixels = true;
+  float flying_pixel_fraction = 0.3f;  // of the pixels at a depth discontinuity
+  float flying_min_jump = 0.03f;       // depth difference that makes a discontinuity [m]
+
+  bool axial_noise = true;
+  float axial_sigma_base = 0.0012f;       // [m]
+  float axial_sigma_quadratic = 0.0019f;  // [m / m^2]
+  float axial_reference_range = 0.4f;     // [m]
+
+  bool disparity_quantisation = true;
+  float baseline = 0.075f;            // projector - IR camera [m]
+  float disparity_step_px = 0.125f;   // sub-pixel disparity resolution [px]
+
+  bool grazing_dropout = true;
+  float max_incidence_deg = 80.0f;  // ray vs surface normal; beyond: no return
+
+  bool random_dropout = true;
+  float dropout_probability = 0.015f;
+
+  float min_range = 0.45f;  // depth z limits [m], applied even when noiseless
+  float max_range = 5.0f;
+
+  // Axial standard deviation at depth z [m].
+  float axialSigma(float z) const {
+    const float dz = z - axial_reference_range;
+    return axial_sigma_base + axial_sigma_quadratic * dz * dz;
+  }
+  static NoiseModel noiseless() {
+    NoiseModel model;
+    model.enabled = false;
+    return model;
+  }
+};
+
+// Table top: a box of size x size y thickness, top face at `height`, centred above the world
+// origin; legs are not modelled. The floor (z = 0) and an optional wall complete the room.
+struct TableSpec {
+  float length = 1.2f;  // along world x [m]
+  float width = 0.8f;   // along world y [m]
+  float height = 0.75f;     // top face above the floor [m]
+  float thickness = 0.03f;  // [m]
+  float floor_half_size = 5.0f;  // the floor is a square of 2 * this [m]
+  bool back_wall = false;        // vertical plane y = width / 2 + wall_distance, facing -y
+  float wall_distance = 0.5f;    // [m]
+};
+
+// One upright object standing on the table top. Cube: box_size = (length along its x, width
+// along its y, height); round objects: radius_bottom (at the table), radius_top, height
+// (cylinder: radius_top == radius_bottom).
+struct ObjectSpec {
+  ShapeType type = ShapeType::Cube;
+  Eigen::Vector3f box_size{0.1f, 0.1f, 0.1f};
+  float radius_bottom = 0.04f;
+  float radius_top = 0.04f;
+  float height = 0.1f;
+  Eigen::Vector2f position_on_table{0.0f, 0.0f};  // world (x, y) of the bottom centre [m]
+  float yaw = 0.0f;  // about world z [rad]
+  std::string name;  // optional label (e.g. "milk-tea box"), copied into the ground truth
+
+  float objectHeight() const { return type == ShapeType::Cube ? box_size.z() : height; }
+  // Half extents of the footprint along world x and y (exact for boxes, discs for round ones).
+  Eigen::Vector2f footprintHalfExtents() const;
+  // Radius of a disc around position_on_table that contains the footprint.
+  float footprintRadius() const;
+};
+
+// The paper's test objects (SPEC.md "Ground truth"), standing at the origin with yaw 0.
+ObjectSpec milkTeaBox();  // box 0.15 x 0.095 x 0.05
+ObjectSpec teapotBox();   // box 0.175 x 0.12 x 0.10
+ObjectSpec steelMug();    // cylinder r 0.0415 h 0.16
+ObjectSpec beaker();      // truncated cone r 0.03 (bottom) - 0.0375 (top) h 0.18
+
+struct CameraPlacement {
+  float distance = 1.0f;   // from the objects' centre on the table top [m]
+  float tilt_deg = 40.0f;  // below level
+  float yaw_deg = 0.0f;    // heading of the viewing direction about world z
+};
+
+struct SceneSpec {
+  CameraIntrinsics camera;
+  CameraPlacement placement;
+  TableSpec table;
+  std::vector<ObjectSpec> objects;
+  NoiseModel noise;
+  uint32_t seed = 1;
+};
+
+// Ground truth of one object, in the camera optical frame.
+struct GroundTruthObject {
+  ShapeType type = ShapeType::Cube;
+  std::string name;
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();  // centre of the solid
+  // Object frame: x along box_size.x, z along the upright axis (pointing up).
+  Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
+  Eigen::Vector3f dimensions = Eigen::Vector3f::Zero();         // cube: edges along x, y, z
+  Eigen::Vector3f sorted_dimensions = Eigen::Vector3f::Zero();  // cube: descending
+  float radius_bottom = 0.0f;  // round objects [m]
+  float radius_top = 0.0f;
+  float height = 0.0f;         // all types [m]
+  int visible_pixels = 0;      // valid cloud points on this object (after noise)
+  Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
+};
+
+// Surface labels of the pixels; objects are labelled by their index (>= 0).
+enum SurfaceLabel : int { kNoReturn = -1, kFloorLabel = -2, kTableLabel = -3, kWallLabel = -4 };
+
+struct RenderedScene {
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud;  // organised width x height, optical frame
+  std::vector<int> labels;                      // per pixel (row-major), SurfaceLabel or object
+  std::vector<GroundTruthObject> objects;       // in SceneSpec::objects order
+  Plane table_plane;                            // table top, normal up, optical frame
+  Eigen::Vector3f up = -Eigen::Vector3f::UnitY();  // world up in the optical frame
+  Eigen::Isometry3f world_from_camera = Eigen::Isometry3f::Identity();  // optical -> world
+  SceneSpec spec;
+};
+
+// World position of the point the camera looks at: the mean of the objects' positions at the
+// table-top height (the table centre when there are no objects).
+Eigen::Vector3f lookAtPoint(const SceneSpec& spec);
+// Pose of the camera optical frame in the world.
+Eigen::Isometry3f cameraPose(const SceneSpec& spec);
+
+RenderedScene renderScene(const SceneSpec& spec);
+
+// Ranges for randomScene(); defaults follow the brief of the benchmark.
+struct RandomSceneOptions {
+  int min_objects = 1;
+  int max_objects = 4;
+  float min_distance = 0.6f, max_distance = 1.5f;
+  float min_tilt_deg = 20.0f, max_tilt_deg = 60.0f;
+  float min_yaw_deg = 0.0f, max_yaw_deg = 360.0f;
+  float edge_margin = 0.12f;       // footprint to table edge [m]
+  float min_gap = 0.02f;           // between footprint discs [m]
+  float paper_object_probability = 0.5f;  // else a random size of a random type
+  float image_margin_px = 20.0f;   // every object's centre projects this far inside the image
+  CameraIntrinsics camera;
+  TableSpec table;
+  NoiseModel noise;
+};
+
+// A random scene: object count, types, sizes, positions, yaws and the camera are drawn from
+// `rng`; the scene seed too. Objects do not overlap, stay inside the table by edge_margin and
+// project into the image (the scene is redrawn until they do, up to a fixed number of tries).
+SceneSpec randomScene(std::mt19937& rng, const RandomSceneOptions& options = {});
+// The paper's four objects together on the table (fixed layout, 2 x 2 around the table centre).
+SceneSpec paperScene(const CameraPlacement& placement = {}, const NoiseModel& noise = {},
+                     uint32_t seed = 1);
+
+// Ground truth + scene parameters as a JSON object (hand-written, stable key order).
+std::string groundTruthJson(const RenderedScene& scene);
+// Writes the cloud as binary PCD / the ground truth as JSON; false on I/O failure.
+bool writePcd(const RenderedScene& scene, const std::string& path);
+bool writeGroundTruthJson(const RenderedScene& scene, const std::string& path);
+
+}  // namespace sim
+}  // namespace tabletop_shapes

@@ -1,0 +1,54 @@
+// §2.5 Euclidean cluster extraction with a k-d tree.
+#include "tabletop_shapes/core/clustering.h"
+
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
+
+#include <algorithm>
+
+namespace tabletop_shapes {
+
+std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const ClusteringParams& params) {
+  std::vector<CloudPtr> clusters;
+  if (!cloud || cloud->empty() || !(params.tolerance > 0.0f)) return clusters;
+  // The k-d tree needs finite points; the stages before hand over dense clouds, but be safe.
+  CloudConstPtr input = cloud;
+  if (!cloud->is_dense) {
+    auto finite = std::make_shared<Cloud>();
+    finite->header = cloud->header;
+    for (const auto& p : cloud->points) {
+      if (p.getVector3fMap().allFinite()) finite->push_back(p);
+    }
+    input = finite;
+  }
+  if (input->empty()) return clusters;
+
+  // Unsorted radius results: the clustering does not need them ordered by distance.
+  auto tree = std::make_shared<pcl::search::KdTree<Point>>(false);
+  tree->setInputCloud(input);
+  std::vector<pcl::PointIndices> cluster_indices;
+  pcl::EuclideanClusterExtraction<Point> extraction;
+  extraction.setClusterTolerance(params.tolerance);
+  extraction.setMinClusterSize(std::max(1, params.min_size));
+  extraction.setMaxClusterSize(std::max(1, params.max_size));
+  extraction.setSearchMethod(tree);
+  extraction.setInputCloud(input);
+  extraction.extract(cluster_indices);
+
+  std::stable_sort(cluster_indices.begin(), cluster_indices.end(),
+                   [](const pcl::PointIndices& a, const pcl::PointIndices& b) {
+                     return a.indices.size() > b.indices.size();
+                   });
+  clusters.reserve(cluster_indices.size());
+  for (const auto& indices : cluster_indices) {
+    auto cluster = std::make_shared<Cloud>();
+    cluster->header = input->header;
+    cluster->reserve(indices.indices.size());
+    for (int i : indices.indices) cluster->push_back((*input)[i]);
+    cluster->is_dense = true;
+    clusters.push_back(cluster);
+  }
+  return clusters;
+}
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,527 @@
+// §3.3 cylinder fit (algebraic circle, eq. 10-16, refined geometrically) and the truncated cone.
+//
+// Everything is computed in a table frame: origin on the table plane below the object, z along
+// the table normal (up), x / y in the plane. The side wall projects to a circle there; for the
+// cone its radius grows linearly with the height above the table.
+#include "tabletop_shapes/core/cylinder_fit.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace tabletop_shapes {
+namespace {
+
+using Vec2d = Eigen::Vector2d;
+using Vec3d = Eigen::Vector3d;
+
+// A point's normal within this angle of the axis belongs to the top disc; beyond
+// kSideMinAngle from the axis it belongs to the side wall (a cone of slope 0.6 still does).
+const double kTopMaxAngle = 25.0 * kPi / 180.0;
+const double kSideMinAngle = 45.0 * kPi / 180.0;
+// Fraction of the highest points ignored when the height comes from the side wall alone.
+const double kHeightQuantile = 0.995;
+// Minimum number of points for a top disc to be trusted as the object's top.
+const int kMinTopPoints = 10;
+// Standard-error estimate of the cone slope needs a few more points than parameters.
+const int kMinSidePoints = 8;
+// Trimmed refit: points beyond this many robust standard deviations (1.4826 MAD) of the
+// residuals are dropped; the floor keeps noise-free data from being trimmed on rounding.
+const double kTrimSigmas = 3.0;
+const double kTrimFloor = 0.0005;  // [m]
+const int kTrimRounds = 3;
+
+// ---- small helpers ----
+
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * (values.size() - 1) + 0.5));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+
+double rms(const Eigen::VectorXd& residuals) {
+  return residuals.size() > 0 ? std::sqrt(residuals.squaredNorm() / residuals.size()) : 0.0;
+}
+
+// Levenberg-Marquardt on sum r_i(x)^2. `evaluate(x, residuals, jacobian)` fills both
+// (jacobian may be nullptr). Returns the parameters reached; stops after max_iterations or
+// when the step no longer changes x. Shared by the circle and the cone fit.
+template <typename Evaluate>
+Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, int n_residuals,
+                                   int max_iterations) {
+  Eigen::VectorXd residuals(n_residuals), trial_residuals(n_residuals);
+  Eigen::MatrixXd jacobian(n_residuals, x.size());
+  evaluate(x, residuals, &jacobian);
+  double cost = residuals.squaredNorm();
+  double lambda = 1e-3;
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    const Eigen::MatrixXd jtj = jacobian.transpose() * jacobian;
+    const Eigen::VectorXd gradient = jacobian.transpose() * residuals;
+    bool improved = false;
+    while (lambda < 1e12) {
+      Eigen::MatrixXd damped = jtj;
+      damped.diagonal() += lambda * (jtj.diagonal().array() + 1e-12).matrix();
+      const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
+      if (!step.allFinite()) break;
+      const Eigen::VectorXd trial = x + step;
+      evaluate(trial, trial_residuals, nullptr);
+      const double trial_cost = trial_residuals.squaredNorm();
+      if (std::isfinite(trial_cost) && trial_cost <= cost) {
+        const bool converged = step.norm() <= 1e-12 * (1.0 + x.norm());
+        x = trial;
+        cost = trial_cost;
+        lambda = std::max(lambda * 0.1, 1e-12);
+        improved = !converged;
+        break;
+      }
+      lambda *= 10.0;
+    }
+    if (!improved) break;
+    evaluate(x, residuals, &jacobian);
+  }
+  return x;
+}
+
+// Per-residual weights (0 or 1 for trimming) applied to the residual and its Jacobian row, so
+// that the trimmed fit reuses the plain least-squares solver.
+template <typename Residuals>
+struct Weighted {
+  const Residuals& model;
+  const Eigen::VectorXd& weights;
+  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
+                  Eigen::MatrixXd* jacobian) const {
+    model(x, residuals, jacobian);
+    residuals.array() *= weights.array();
+    if (jacobian) *jacobian = weights.asDiagonal() * *jacobian;
+  }
+};
+
+struct TrimmedSolution {
+  Eigen::VectorXd x;
+  Eigen::VectorXd residuals;  // unweighted, all points
+  Eigen::VectorXd inliers;    // 1 = used, 0 = trimmed
+  int inlier_count = 0;
+  double rmse = 0.0;          // over the inliers
+};
+
+// Least squares that ignores gross outliers (a mug's handle, flying pixels at the silhouette):
+// fit, drop points beyond kTrimSigmas robust standard deviations of the residuals, refit from
+// there; stops when the inlier set no longer changes. Gaussian noise loses ~0.3 % of its points,
+// symmetrically, so no bias is added on clean data.
+template <typename Residuals>
+TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorXd& start, int n,
+                                    int max_iterations) {
+  TrimmedSolution solution;
+  solution.x = start;
+  solution.inliers = Eigen::VectorXd::Ones(n);
+  solution.residuals.resize(n);
+  for (int round = 0; round <= kTrimRounds; ++round) {
+    solution.x = levenbergMarquardt(Weighted<Residuals>{model, solution.inliers}, solution.x, n,
+                                    max_iterations);
+    model(solution.x, solution.residuals, nullptr);
+    if (round == kTrimRounds) break;
+    std::vector<double> magnitudes(n);
+    for (int i = 0; i < n; ++i) magnitudes[i] = std::abs(solution.residuals[i]);
+    const double threshold = std::max(kTrimSigmas * 1.4826 * quantile(magnitudes, 0.5),
+                                      kTrimFloor);
+    const Eigen::VectorXd inliers =
+        (solution.residuals.array().abs() <= threshold).template cast<double>();
+    if (inliers.sum() < kMinSidePoints || inliers == solution.inliers) break;
+    solution.inliers = inliers;
+  }
+  solution.inlier_count = static_cast<int>(solution.inliers.sum());
+  solution.rmse = solution.inlier_count > 0
+                      ? std::sqrt((solution.residuals.array() * solution.inliers.array())
+                                      .square()
+                                      .sum() /
+                                  solution.inlier_count)
+                      : 0.0;
+  return solution;
+}
+
+// Geometric circle residuals |p - c| - r and their Jacobian w.r.t. (cx, cy, r).
+struct CircleResiduals {
+  const std::vector<Vec2d>& points;
+  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
+                  Eigen::MatrixXd* jacobian) const {
+    const Vec2d centre(x[0], x[1]);
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Vec2d offset = points[i] - centre;
+      const double distance = offset.norm();
+      residuals[i] = distance - x[2];
+      if (jacobian) {
+        // At the centre the direction is undefined; any unit vector keeps J finite.
+        const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
+        jacobian->row(i) << -direction.x(), -direction.y(), -1.0;
+      }
+    }
+  }
+};
+
+// Cone residuals |q - c| - (r0 + s h) and their Jacobian w.r.t. (cx, cy, r0, s).
+struct ConeResiduals {
+  const std::vector<Vec2d>& points;
+  const std::vector<double>& heights;
+  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
+                  Eigen::MatrixXd* jacobian) const {
+    const Vec2d centre(x[0], x[1]);
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Vec2d offset = points[i] - centre;
+      const double distance = offset.norm();
+      residuals[i] = distance - (x[2] + x[3] * heights[i]);
+      if (jacobian) {
+        const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
+        jacobian->row(i) << -direction.x(), -direction.y(), -1.0, -heights[i];
+      }
+    }
+  }
+};
+
+std::vector<Vec2d> toDouble(const std::vector<Eigen::Vector2f>& points) {
+  std::vector<Vec2d> out;
+  out.reserve(points.size());
+  for (const auto& p : points) out.push_back(p.cast<double>());
+  return out;
+}
+
+// Algebraic circle (eq. 10-16) on double points. The points are centred and scaled first so
+// that the normal equations stay well conditioned for any offset of the frame.
+Circle algebraicCircle(const std::vector<Vec2d>& points) {
+  Circle circle;
+  if (points.size() < 3) return circle;
+  Vec2d mean = Vec2d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+  for (const auto& p : points) scatter += (p - mean) * (p - mean).transpose();
+  // Eigenvalues of the symmetric 2x2 scatter in closed form.
+  const double half_trace = 0.5 * scatter.trace();
+  const double spread = std::hypot(0.5 * (scatter(0, 0) - scatter(1, 1)), scatter(0, 1));
+  const double largest = half_trace + spread;
+  // Collinear (or coincident) points: no circle, only a line (or nothing).
+  if (!(largest > 0.0) || half_trace - spread <= 1e-12 * largest) return circle;
+  const double scale = std::sqrt(largest / static_cast<double>(points.size()));
+
+  // x^2 + y^2 - 2Ax - 2By - C = 0  <=>  [2x 2y 1] [A B C]^T = x^2 + y^2 (eq. 10-16).
+  Eigen::MatrixXd design(points.size(), 3);
+  Eigen::VectorXd target(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2d q = (points[i] - mean) / scale;
+    design.row(i) << 2.0 * q.x(), 2.0 * q.y(), 1.0;
+    target[i] = q.squaredNorm();
+  }
+  const Eigen::Vector3d abc = design.colPivHouseholderQr().solve(target);
+  const double radius_squared = abc[0] * abc[0] + abc[1] * abc[1] + abc[2];
+  if (!abc.allFinite() || !(radius_squared > 0.0)) return circle;
+  const Vec2d centre = mean + scale * Vec2d(abc[0], abc[1]);
+  const double radius = scale * std::sqrt(radius_squared);
+
+  Eigen::VectorXd residuals(points.size());
+  CircleResiduals{points}(Eigen::Vector3d(centre.x(), centre.y(), radius), residuals, nullptr);
+  circle.center = centre.cast<float>();
+  circle.radius = static_cast<float>(radius);
+  circle.rmse = static_cast<float>(rms(residuals));
+  circle.ok = std::isfinite(circle.radius) && std::isfinite(circle.rmse);
+  return circle;
+}
+
+Circle geometricCircle(const std::vector<Vec2d>& points, const Circle& initial,
+                       int max_iterations) {
+  const Circle start = initial.ok ? initial : algebraicCircle(points);
+  if (!start.ok || points.size() < 3) return Circle{};
+  const Eigen::VectorXd x = levenbergMarquardt(
+      CircleResiduals{points},
+      Eigen::Vector3d(start.center.x(), start.center.y(), start.radius), points.size(),
+      std::max(0, max_iterations));
+  Eigen::VectorXd residuals(points.size());
+  CircleResiduals{points}(x, residuals, nullptr);
+  Circle circle;
+  circle.center = Vec2d(x[0], x[1]).cast<float>();
+  circle.radius = static_cast<float>(std::abs(x[2]));
+  circle.rmse = static_cast<float>(rms(residuals));
+  circle.ok = x.allFinite() && circle.radius > 0.0f;
+  return circle;
+}
+
+// ---- the object in the table frame ----
+
+struct TableFrame {
+  Eigen::Matrix3d rotation;  // rows: table x, table y, table normal (cloud -> table)
+  Vec3d origin;              // on the table plane, below the object's centroid
+  Vec3d toTable(const Vec3d& p) const { return rotation * (p - origin); }
+  Vec3d toCloud(const Vec3d& q) const { return rotation.transpose() * q + origin; }
+};
+
+// The object's points split by what they are: side wall (radius), all (height).
+struct RoundObjectPoints {
+  bool ok = false;
+  std::string reason;
+  TableFrame frame;
+  std::vector<Vec2d> side_xy;       // side wall, projected on the table
+  std::vector<double> side_height;  // their height above the table
+  double height = 0.0;
+  bool top_seen = false;            // height from the top disc (else from the side wall)
+};
+
+RoundObjectPoints splitObject(const NormalCloud& object, const Plane& table,
+                              const CylinderParams& params) {
+  RoundObjectPoints out;
+  const double normal_length = table.normal.cast<double>().norm();
+  if (!std::isfinite(normal_length) || !std::isfinite(table.d) || normal_length < 1e-6) {
+    out.reason = "invalid table plane";
+    return out;
+  }
+  const Vec3d up = table.normal.cast<double>() / normal_length;
+  const double table_d = table.d / normal_length;
+  std::vector<Vec3d> positions;
+  std::vector<Vec3d> normals;
+  positions.reserve(object.size());
+  normals.reserve(object.size());
+  Vec3d centroid = Vec3d::Zero();
+  for (const auto& p : object.points) {
+    const Vec3d position(p.x, p.y, p.z);
+    if (!position.allFinite()) continue;
+    positions.push_back(position);
+    normals.push_back(Vec3d(p.normal_x, p.normal_y, p.normal_z));
+    centroid += position;
+  }
+  if (positions.size() < 3) {
+    out.reason = "too few points (" + std::to_string(positions.size()) + ")";
+    return out;
+  }
+  centroid /= static_cast<double>(positions.size());
+
+  TableFrame& frame = out.frame;
+  const Vec3d x_axis = up.unitOrthogonal();
+  frame.rotation.row(0) = x_axis.transpose();
+  frame.rotation.row(1) = up.cross(x_axis).transpose();
+  frame.rotation.row(2) = up.transpose();
+  frame.origin = centroid - (up.dot(centroid) + table_d) * up;
+
+  std::vector<Vec3d> local(positions.size());
+  std::vector<double> heights(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) {
+    local[i] = frame.toTable(positions[i]);
+    heights[i] = local[i].z();
+  }
+  // Height (the paper: the largest distance to the table, outliers being removed upstream).
+  // A surviving flying pixel or noise spike would add to the max directly, so: the median
+  // height of the top disc when it is seen (unbiased under symmetric noise), else a high
+  // quantile of all heights (costs < 0.5 % of the height range on a uniformly sampled wall).
+  const double high = quantile(heights, kHeightQuantile);
+  const double top_band = std::max(static_cast<double>(params.top_margin), 0.0);
+  std::vector<double> top_heights;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    const double n_norm = normals[i].norm();
+    if (!(n_norm > 0.0) || !normals[i].allFinite()) continue;
+    const double cos_axis = std::abs(normals[i].dot(up)) / n_norm;
+    if (cos_axis >= std::cos(kTopMaxAngle) && heights[i] >= high - top_band) {
+      top_heights.push_back(heights[i]);
+    }
+  }
+  out.top_seen = static_cast<int>(top_heights.size()) >= kMinTopPoints;
+  out.height = out.top_seen ? quantile(top_heights, 0.5) : high;
+  if (!(out.height > 0.0)) {
+    out.reason = "object has no height above the table";
+    return out;
+  }
+
+  // Side wall: normal far from the axis (unknown normals count as side), and below the rim,
+  // where smoothing blends the top disc into the wall (kept when it would leave too few).
+  const double rim = out.height - top_band;
+  for (int pass = 0; pass < 2 && out.side_xy.size() < kMinSidePoints; ++pass) {
+    out.side_xy.clear();
+    out.side_height.clear();
+    for (size_t i = 0; i < positions.size(); ++i) {
+      const double n_norm = normals[i].norm();
+      const bool normal_known = n_norm > 0.0 && normals[i].allFinite();
+      if (normal_known && std::abs(normals[i].dot(up)) / n_norm > std::cos(kSideMinAngle)) {
+        continue;
+      }
+      if (pass == 0 && heights[i] > rim) continue;
+      out.side_xy.push_back(local[i].head<2>());
+      out.side_height.push_back(heights[i]);
+    }
+  }
+  if (out.side_xy.size() < kMinSidePoints) {
+    out.reason = "too few side-wall points (" + std::to_string(out.side_xy.size()) + ")";
+    return out;
+  }
+  out.ok = true;
+  return out;
+}
+
+Eigen::Quaternionf axisUp(const TableFrame& frame) {
+  // Columns of rotation^T are the table axes in the cloud frame; z is the table normal.
+  return Eigen::Quaternionf(frame.rotation.transpose().cast<float>()).normalized();
+}
+
+std::string formatRadius(const char* what, double radius, const CylinderParams& params) {
+  std::ostringstream reason;
+  reason << what << " " << radius << " m outside [" << params.min_radius << ", "
+         << params.max_radius << "] m";
+  return reason.str();
+}
+
+bool radiusInBounds(double radius, const CylinderParams& params) {
+  return std::isfinite(radius) && radius >= params.min_radius && radius <= params.max_radius;
+}
+
+struct ConeSolution {
+  Eigen::Vector4d x = Eigen::Vector4d::Zero();  // cx, cy, r0, slope
+  double rmse = 0.0;
+  int points = 0;
+  double slope_stderr = std::numeric_limits<double>::infinity();
+};
+
+ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder,
+                       int max_iterations) {
+  const ConeResiduals residual_model{split.side_xy, split.side_height};
+  const int n = static_cast<int>(split.side_xy.size());
+  const TrimmedSolution trimmed = trimmedLeastSquares(
+      residual_model,
+      Eigen::Vector4d(cylinder.center.x(), cylinder.center.y(), cylinder.radius, 0.0), n,
+      std::max(0, max_iterations));
+  ConeSolution solution;
+  solution.x = trimmed.x;
+  solution.rmse = trimmed.rmse;
+  solution.points = trimmed.inlier_count;
+  Eigen::VectorXd residuals(n);
+  Eigen::MatrixXd jacobian(n, 4);
+  Weighted<ConeResiduals>{residual_model, trimmed.inliers}(trimmed.x, residuals, &jacobian);
+  // Covariance of the estimate on the inliers: sigma^2 (J^T J)^-1, sigma^2 = SSR / (m - 4).
+  // Residuals of neighbouring points are correlated (voxel grid, MLS smoothing), so this is
+  // optimistic; the decision adds ConeParams::min_slope on top.
+  const Eigen::Matrix4d jtj = jacobian.transpose() * jacobian;
+  const Eigen::FullPivLU<Eigen::Matrix4d> lu(jtj);
+  const int m = trimmed.inlier_count;
+  if (m > 4 && lu.isInvertible()) {
+    const double variance = residuals.squaredNorm() / (m - 4);
+    const double slope_variance = variance * lu.inverse()(3, 3);
+    if (slope_variance >= 0.0) solution.slope_stderr = std::sqrt(slope_variance);
+  }
+  return solution;
+}
+
+// Cylinder from an already split object; `circle` receives the refined circle.
+ShapeFit cylinderFromSplit(const RoundObjectPoints& split, const CylinderParams& params,
+                           Circle& circle) {
+  ShapeFit fit;
+  fit.type = ShapeType::Cylinder;
+  const Circle initial = algebraicCircle(split.side_xy);
+  if (!initial.ok) {
+    fit.reason = "side-wall points are collinear in the table plane (no circle)";
+    return fit;
+  }
+  const TrimmedSolution trimmed = trimmedLeastSquares(
+      CircleResiduals{split.side_xy},
+      Eigen::Vector3d(initial.center.x(), initial.center.y(), initial.radius),
+      static_cast<int>(split.side_xy.size()), std::max(0, params.max_refine_iterations));
+  circle.center = trimmed.x.head<2>().cast<float>();
+  circle.radius = static_cast<float>(std::abs(trimmed.x[2]));
+  circle.rmse = static_cast<float>(trimmed.rmse);
+  circle.ok = trimmed.x.allFinite() && circle.radius > 0.0f;
+  if (!circle.ok) {
+    fit.reason = "geometric circle refinement failed";
+    return fit;
+  }
+  fit.radius = circle.radius;
+  fit.height = static_cast<float>(split.height);
+  fit.points = trimmed.inlier_count;
+  fit.rmse = circle.rmse;
+  fit.orientation = axisUp(split.frame);
+  fit.center = split.frame
+                   .toCloud(Vec3d(circle.center.x(), circle.center.y(), split.height / 2))
+                   .cast<float>();
+  if (!radiusInBounds(circle.radius, params)) {
+    fit.reason = formatRadius("radius", circle.radius, params);
+    return fit;
+  }
+  fit.ok = true;
+  return fit;
+}
+
+ShapeFit coneFromSplit(const RoundObjectPoints& split, const Circle& cylinder_circle,
+                       const CylinderParams& params, ConeSolution& solution) {
+  ShapeFit fit;
+  fit.type = ShapeType::Cone;
+  solution = solveCone(split, cylinder_circle, params.max_refine_iterations);
+  const Eigen::Vector4d& x = solution.x;
+  fit.radius_bottom = static_cast<float>(x[2]);
+  fit.radius_top = static_cast<float>(x[2] + x[3] * split.height);
+  fit.radius = 0.5f * (fit.radius_bottom + fit.radius_top);
+  fit.height = static_cast<float>(split.height);
+  fit.points = solution.points;
+  fit.rmse = static_cast<float>(solution.rmse);
+  fit.orientation = axisUp(split.frame);
+  fit.center = split.frame.toCloud(Vec3d(x[0], x[1], split.height / 2)).cast<float>();
+  if (!x.allFinite()) {
+    fit.reason = "cone refinement diverged";
+  } else if (!radiusInBounds(fit.radius_bottom, params)) {
+    fit.reason = formatRadius("bottom radius", fit.radius_bottom, params);
+  } else if (!radiusInBounds(fit.radius_top, params)) {
+    fit.reason = formatRadius("top radius", fit.radius_top, params);
+  } else {
+    fit.ok = true;
+  }
+  return fit;
+}
+
+ShapeFit failed(ShapeType type, const std::string& reason) {
+  ShapeFit fit;
+  fit.type = type;
+  fit.reason = reason;
+  return fit;
+}
+
+}  // namespace
+
+Circle fitCircleAlgebraic(const std::vector<Eigen::Vector2f>& points) {
+  return algebraicCircle(toDouble(points));
+}
+
+Circle refineCircleGeometric(const std::vector<Eigen::Vector2f>& points, const Circle& initial,
+                             int max_iterations) {
+  return geometricCircle(toDouble(points), initial, max_iterations);
+}
+
+ShapeFit fitCylinder(const NormalCloud& object, const Plane& table,
+                     const CylinderParams& params) {
+  const RoundObjectPoints split = splitObject(object, table, params);
+  if (!split.ok) return failed(ShapeType::Cylinder, split.reason);
+  Circle circle;
+  return cylinderFromSplit(split, params, circle);
+}
+
+ShapeFit fitCone(const NormalCloud& object, const Plane& table, const CylinderParams& cylinder,
+                 const ConeParams& /*params*/) {
+  const RoundObjectPoints split = splitObject(object, table, cylinder);
+  if (!split.ok) return failed(ShapeType::Cone, split.reason);
+  Circle circle;
+  const ShapeFit start = cylinderFromSplit(split, cylinder, circle);
+  if (!circle.ok) return failed(ShapeType::Cone, start.reason);
+  ConeSolution solution;
+  return coneFromSplit(split, circle, cylinder, solution);
+}
+
+ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
+                        const CylinderParams& cylinder, const ConeParams& cone) {
+  const RoundObjectPoints split = splitObject(object, table, cylinder);
+  if (!split.ok) return failed(ShapeType::Cylinder, split.reason);
+  Circle circle;
+  ShapeFit cylinder_fit = cylinderFromSplit(split, cylinder, circle);
+  if (!circle.ok) return cylinder_fit;
+  ConeSolution solution;
+  ShapeFit cone_fit = coneFromSplit(split, circle, cylinder, solution);
+  const double slope = solution.x[3];
+  const bool slope_significant = std::abs(slope) >= cone.min_slope &&
+                                 std::abs(slope) > cone.slope_sigma * solution.slope_stderr;
+  if (slope_significant && cone_fit.ok) return cone_fit;
+  return cylinder_fit;
+}
+
+}  // namespace tabletop_shapes

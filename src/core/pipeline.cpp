@@ -1,0 +1,69 @@
+#include "tabletop_shapes/core/pipeline.h"
+
+#include "tabletop_shapes/core/clustering.h"
+
+#include <chrono>
+
+namespace tabletop_shapes {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+Pipeline::Pipeline(const PipelineParams& params) : filtered_(std::make_shared<Cloud>()) {
+  setParams(params);
+}
+
+void Pipeline::setParams(const PipelineParams& params) {
+  params_ = params;
+  preprocessor_.setParams(params.preprocess);
+  estimator_.setParams(params.shapes);
+}
+
+SceneResult Pipeline::process(const pcl::PointCloud<pcl::PointXYZ>& cloud) {
+  return processImpl(cloud);
+}
+SceneResult Pipeline::process(const pcl::PointCloud<pcl::PointXYZRGB>& cloud) {
+  return processImpl(cloud);
+}
+
+template <typename PointT>
+SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
+  SceneResult result;
+  const auto start = Clock::now();
+
+  auto stage = Clock::now();
+  preprocessor_.apply(cloud, *filtered_);
+  result.times.preprocess_ms = msSince(stage);
+
+  stage = Clock::now();
+  TableParams table_params = params_.table;
+  if (params_.auto_up && !estimateUp(filtered_, table_params, table_params.up)) {
+    result.table.reason = "no large plane with the camera above it to take 'up' from";
+  } else {
+    result.up = table_params.up;
+    result.table = TableSegmenter(table_params).segment(filtered_);
+  }
+  result.times.table_ms = msSince(stage);
+
+  if (result.table.found && result.table.object_points) {
+    stage = Clock::now();
+    result.clusters = extractClusters(result.table.object_points, params_.clustering);
+    result.times.clustering_ms = msSince(stage);
+
+    stage = Clock::now();
+    result.objects.reserve(result.clusters.size());
+    for (const CloudPtr& cluster : result.clusters) {
+      result.objects.push_back(estimator_.estimate(cluster, result.table.plane));
+    }
+    result.times.shapes_ms = msSince(stage);
+  }
+  result.times.total_ms = msSince(start);
+  return result;
+}
+
+}  // namespace tabletop_shapes

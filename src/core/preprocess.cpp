@@ -1,0 +1,141 @@
+// §2.1 preprocessing: maximum range, then a voxel grid whose voxels become their centroid.
+//
+// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a single pass packs each
+// valid point's integer voxel coordinates into a 63-bit key and adds the point to that voxel's
+// running sum, found through an open-addressing hash table. Consecutive pixels of an organised
+// cloud mostly share a voxel, so the last voxel is tried first. The table and the sums are
+// members and are reused from frame to frame; the output lists the voxels in the order they
+// are first met, so it is deterministic.
+#include "tabletop_shapes/core/preprocess.h"
+
+#include <cmath>
+
+namespace tabletop_shapes {
+namespace {
+
+constexpr int kAxisBits = 21;                                 // bits per voxel coordinate
+constexpr int64_t kAxisOffset = int64_t{1} << (kAxisBits - 1);  // makes coordinates >= 0
+constexpr uint64_t kEmptyKey = ~uint64_t{0};                  // never a 63-bit key
+
+inline uint64_t hashKey(uint64_t key) {  // splitmix64 finaliser: spreads neighbouring voxels
+  key ^= key >> 31;
+  key *= 0x7fb5d329728ea185ull;
+  key ^= key >> 27;
+  key *= 0x81dadef4bc2dd44dull;
+  key ^= key >> 33;
+  return key;
+}
+
+// floor() without the libm call that std::floor costs on baseline x86-64 (no SSE4.1); |v| must
+// fit an int64.
+inline int64_t floorToInt(float v) {
+  const int64_t i = static_cast<int64_t>(v);
+  return i - (v < static_cast<float>(i));
+}
+
+}  // namespace
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out) {
+  if (&in == &out) {  // in-place call: build the result separately, then swap
+    Cloud result;
+    applyImpl(in, result);
+    out.swap(result);
+    return;
+  }
+  applyImpl(in, out);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out) {
+  applyImpl(in, out);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out) {
+  applyImpl(in, out);
+}
+
+template <typename PointT>
+void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
+  out.header = in.header;
+  out.points.clear();
+  out.width = 0;
+  out.height = 1;
+  out.is_dense = true;
+  out.sensor_origin_ = in.sensor_origin_;
+  out.sensor_orientation_ = in.sensor_orientation_;
+
+  const bool limit_range = params_.max_range > 0.0f;
+  const float max_range_sq = params_.max_range * params_.max_range;
+  auto keep = [&](const PointT& p) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+    return !limit_range || p.x * p.x + p.y * p.y + p.z * p.z <= max_range_sq;
+  };
+
+  if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
+    out.points.reserve(in.points.size());
+    for (const auto& p : in.points) {
+      if (keep(p)) out.points.emplace_back(p.x, p.y, p.z);
+    }
+    out.width = static_cast<uint32_t>(out.points.size());
+    return;
+  }
+
+  const float inv_leaf = 1.0f / params_.leaf_size;
+  // Keep the table at most half full: start from the last frame's size, grow when needed.
+  size_t capacity = std::max<size_t>(slots_.size(), 1024);
+  slots_.assign(capacity, VoxelSlot{kEmptyKey, 0});
+  sums_.clear();
+  auto grow = [&]() {
+    capacity *= 2;
+    slots_.assign(capacity, VoxelSlot{kEmptyKey, 0});
+    for (uint32_t voxel = 0; voxel < sums_.size(); ++voxel) {
+      const uint64_t key = sums_[voxel].key;
+      size_t slot = hashKey(key) & (capacity - 1);
+      while (slots_[slot].key != kEmptyKey) slot = (slot + 1) & (capacity - 1);
+      slots_[slot] = {key, voxel};
+    }
+  };
+
+  uint64_t last_key = kEmptyKey;
+  uint32_t last_voxel = 0;
+  const float limit = static_cast<float>(kAxisOffset - 1);
+  for (const auto& p : in.points) {
+    if (!keep(p)) continue;
+    const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
+    // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
+    if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
+    const uint64_t key = (static_cast<uint64_t>(floorToInt(vx) + kAxisOffset) << (2 * kAxisBits)) |
+                         (static_cast<uint64_t>(floorToInt(vy) + kAxisOffset) << kAxisBits) |
+                         static_cast<uint64_t>(floorToInt(vz) + kAxisOffset);
+    if (key != last_key) {
+      size_t slot = hashKey(key) & (capacity - 1);
+      while (slots_[slot].key != kEmptyKey && slots_[slot].key != key) {
+        slot = (slot + 1) & (capacity - 1);
+      }
+      if (slots_[slot].key == kEmptyKey) {
+        if (2 * (sums_.size() + 1) > capacity) {
+          grow();
+          slot = hashKey(key) & (capacity - 1);
+          while (slots_[slot].key != kEmptyKey) slot = (slot + 1) & (capacity - 1);
+        }
+        slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
+        sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
+      }
+      last_key = key;
+      last_voxel = slots_[slot].voxel;
+    }
+    VoxelSum& sum = sums_[last_voxel];
+    sum.x += p.x, sum.y += p.y, sum.z += p.z;
+    ++sum.count;
+  }
+
+  out.points.reserve(sums_.size());
+  for (const VoxelSum& sum : sums_) {
+    const double inv_count = 1.0 / sum.count;
+    out.points.emplace_back(static_cast<float>(sum.x * inv_count),
+                            static_cast<float>(sum.y * inv_count),
+                            static_cast<float>(sum.z * inv_count));
+  }
+  out.width = static_cast<uint32_t>(out.points.size());
+}
+
+}  // namespace tabletop_shapes

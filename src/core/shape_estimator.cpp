@@ -1,0 +1,58 @@
+#include "tabletop_shapes/core/shape_estimator.h"
+
+#include "tabletop_shapes/core/cube_fit.h"
+#include "tabletop_shapes/core/cylinder_fit.h"
+#include "tabletop_shapes/core/normals.h"
+#include "tabletop_shapes/core/predictor.h"
+
+#include <sstream>
+
+namespace tabletop_shapes {
+namespace {
+
+ShapeFit unknown(const Cloud& cluster, const std::string& reason) {
+  ShapeFit fit;
+  fit.type = ShapeType::Unknown;
+  fit.reason = reason;
+  fit.points = static_cast<int>(cluster.size());
+  Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+  for (const auto& p : cluster.points) sum += p.getVector3fMap();
+  if (!cluster.empty()) fit.center = sum / static_cast<float>(cluster.size());
+  return fit;
+}
+
+}  // namespace
+
+ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table) const {
+  if (!cluster || cluster->size() < 10) {
+    return unknown(cluster ? *cluster : Cloud(), "too few points to fit a model");
+  }
+  NormalCloud normals;
+  estimateNormalsMLS(cluster, params_.normals, normals);
+  if (normals.size() < 10) return unknown(*cluster, "too few points with a normal");
+
+  const Prediction prediction = predictShape(normals, params_.predictor);
+  auto fitAs = [&](ShapeType type) {
+    return type == ShapeType::Cube
+               ? fitCube(normals, table, params_.cube)
+               : fitRoundObject(normals, table, params_.cylinder, params_.cone);
+  };
+  const ShapeType first = prediction.guess == ShapeType::Cube ? ShapeType::Cube
+                                                              : ShapeType::Cylinder;
+  const ShapeType second = first == ShapeType::Cube ? ShapeType::Cylinder : ShapeType::Cube;
+
+  ShapeFit best = fitAs(first);
+  if (best.ok && best.rmse <= params_.predictor.fallback_rmse) return best;
+
+  // The guess fits badly (or not at all): try the other model, keep the lower residual.
+  ShapeFit other = fitAs(second);
+  if (other.ok && (!best.ok || other.rmse < best.rmse)) best = other;
+  if (best.ok) return best;
+
+  std::ostringstream reason;
+  reason << "no model fits: " << shapeTypeName(first) << ": " << best.reason << "; "
+         << shapeTypeName(second) << ": " << other.reason;
+  return unknown(*cluster, reason.str());
+}
+
+}  // namespace tabletop_shapes

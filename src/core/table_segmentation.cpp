@@ -1,0 +1,451 @@
+// §2.2-2.4: the support plane (RANSAC + OLS), its convex hull, the object points above it and
+// the statistical outlier removal; plus the estimation of "up" for a camera of unknown tilt.
+#include "tabletop_shapes/core/table_segmentation.h"
+
+#include <pcl/filters/statistical_outlier_removal.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <numeric>
+#include <random>
+
+namespace tabletop_shapes {
+namespace {
+
+// A support plane needs at least this many object points above it (inside its hull) to count
+// as "a plane with objects on it" when the candidates are ranked.
+constexpr int kMinSupportedPoints = 50;
+// RANSAC scores hypotheses on a random subset of at most this many points: the ranking is the
+// same as on the full cloud, and a VGA frame costs a fraction of the time.
+constexpr size_t kMaxScoringPoints = 20000;
+constexpr double kRansacConfidence = 0.99;
+// A higher candidate whose hull is smaller than this fraction of a lower candidate's hull, and
+// that stands inside it and within the object height band, is an object's top (a box), not a
+// support plane.
+constexpr float kObjectTopAreaFraction = 0.25f;
+// Support candidates are within this angle of the dominant plane's normal (cos 4 deg).
+constexpr float kParallelCosine = 0.99756f;
+// estimateUp: a support plane's normal, oriented towards the camera, points up in the image
+// (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
+// box faces and ceilings do not.
+constexpr float kMinImageUpCosine = 0.1f;
+
+// How candidate planes are oriented and which normals are acceptable.
+struct NormalConstraint {
+  Eigen::Vector3f axis;    // accepted normals satisfy normal . axis >= min_cos
+  float min_cos;
+  bool orient_to_origin;   // orient normals towards the camera (else along axis)
+};
+
+struct Candidate {
+  Plane plane;
+  std::vector<int> inliers;
+  std::vector<Eigen::Vector3f> hull;  // 3-D, on the plane, counter-clockwise about the normal
+  std::vector<Eigen::Vector2f> hull_2d;
+  Eigen::Vector3f u, v;               // in-plane basis of hull_2d
+  float area = 0.0f;
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+};
+
+Plane orient(Plane plane, const NormalConstraint& constraint) {
+  const bool flip = constraint.orient_to_origin ? plane.d < 0.0f
+                                                : plane.normal.dot(constraint.axis) < 0.0f;
+  if (flip) {
+    plane.normal = -plane.normal;
+    plane.d = -plane.d;
+  }
+  return plane;
+}
+
+bool acceptable(const Plane& oriented, const NormalConstraint& constraint) {
+  return oriented.normal.dot(constraint.axis) >= constraint.min_cos;
+}
+
+// Plane through three points; false when they are (nearly) collinear.
+bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
+                  Plane& plane) {
+  const Eigen::Vector3f n = (b - a).cross(c - a);
+  const float norm = n.norm();
+  if (!(norm > 1e-9f)) return false;
+  plane.normal = n / norm;
+  plane.d = -plane.normal.dot(a);
+  return true;
+}
+
+void collectInliers(const Cloud& cloud, const std::vector<int>& indices, const Plane& plane,
+                    float threshold, std::vector<int>& inliers) {
+  inliers.clear();
+  for (int i : indices) {
+    if (std::abs(plane.signedDistance(cloud[i].getVector3fMap())) <= threshold) {
+      inliers.push_back(i);
+    }
+  }
+}
+
+// RANSAC for the plane with the most inliers among `indices` whose (oriented) normal satisfies
+// the constraint, refined by OLS and re-collected. False when no acceptable plane is found.
+bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const TableParams& params,
+                 const NormalConstraint& constraint, std::mt19937& rng, Plane& plane,
+                 std::vector<int>& inliers) {
+  if (indices.size() < 3) return false;
+  std::vector<int> scoring = indices;
+  if (scoring.size() > kMaxScoringPoints) {
+    std::shuffle(scoring.begin(), scoring.end(), rng);
+    scoring.resize(kMaxScoringPoints);
+  }
+  std::uniform_int_distribution<size_t> pick(0, indices.size() - 1);
+  const float threshold = params.distance_threshold;
+  size_t best_count = 0;
+  Plane best;
+  double needed = params.max_iterations;
+  for (int iteration = 0; iteration < params.max_iterations && iteration < needed; ++iteration) {
+    Plane hypothesis;
+    if (!planeThrough(cloud[indices[pick(rng)]].getVector3fMap(),
+                      cloud[indices[pick(rng)]].getVector3fMap(),
+                      cloud[indices[pick(rng)]].getVector3fMap(), hypothesis)) {
+      continue;
+    }
+    hypothesis = orient(hypothesis, constraint);
+    if (!acceptable(hypothesis, constraint)) continue;
+    size_t count = 0;
+    for (int i : scoring) {
+      count += std::abs(hypothesis.signedDistance(cloud[i].getVector3fMap())) <= threshold;
+    }
+    if (count > best_count) {
+      best_count = count;
+      best = hypothesis;
+      const double w = static_cast<double>(count) / static_cast<double>(scoring.size());
+      const double all_inliers = 1.0 - w * w * w;
+      needed = all_inliers <= 0.0 ? 0.0
+                                  : std::log(1.0 - kRansacConfidence) / std::log(all_inliers);
+    }
+  }
+  if (best_count < 3) return false;
+  // Two rounds of OLS on the inliers: the second one on the set the refined plane explains.
+  plane = best;
+  for (int round = 0; round < 2; ++round) {
+    collectInliers(cloud, indices, plane, threshold, inliers);
+    Plane refined = plane;
+    if (!refinePlaneOLS(cloud, inliers, refined)) break;
+    refined = orient(refined, constraint);
+    if (!acceptable(refined, constraint)) break;
+    plane = refined;
+  }
+  collectInliers(cloud, indices, plane, threshold, inliers);
+  return true;
+}
+
+// Andrew's monotone chain; returns the hull counter-clockwise, without collinear points.
+std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
+  std::sort(points.begin(), points.end(), [](const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  points.erase(std::unique(points.begin(), points.end()), points.end());
+  if (points.size() < 3) return points;
+  auto cross = [](const Eigen::Vector2f& o, const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::vector<Eigen::Vector2f> hull(2 * points.size());
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {  // lower hull
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0.0f) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, lower = k + 1; i > 0; --i) {  // upper hull
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i - 1]) <= 0.0f) --k;
+    hull[k++] = points[i - 1];
+  }
+  hull.resize(k - 1);  // the last point repeats the first
+  return hull;
+}
+
+// Distance of q inside the counter-clockwise convex polygon to its boundary (negative outside).
+float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& q) {
+  float nearest = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2f& a = hull[i];
+    const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - a;
+    const float length = edge.norm();
+    if (length <= 0.0f) continue;
+    // Left of a counter-clockwise edge is inside.
+    const float distance = (edge.x() * (q.y() - a.y()) - edge.y() * (q.x() - a.x())) / length;
+    nearest = std::min(nearest, distance);
+  }
+  return nearest;
+}
+
+void buildHull(const Cloud& cloud, Candidate& candidate) {
+  const Eigen::Vector3f& n = candidate.plane.normal;
+  candidate.u = n.unitOrthogonal();
+  candidate.v = n.cross(candidate.u);
+  std::vector<Eigen::Vector2f> projected;
+  projected.reserve(candidate.inliers.size());
+  for (int i : candidate.inliers) {
+    const Eigen::Vector3f p = cloud[i].getVector3fMap();
+    projected.emplace_back(candidate.u.dot(p), candidate.v.dot(p));
+  }
+  candidate.hull_2d = convexHull2d(std::move(projected));
+  const Eigen::Vector3f origin = -candidate.plane.d * n;  // the plane point nearest the origin
+  candidate.hull.clear();
+  candidate.area = 0.0f;
+  Eigen::Vector2f centroid_2d = Eigen::Vector2f::Zero();
+  for (size_t i = 0; i < candidate.hull_2d.size(); ++i) {
+    const Eigen::Vector2f& a = candidate.hull_2d[i];
+    const Eigen::Vector2f& b = candidate.hull_2d[(i + 1) % candidate.hull_2d.size()];
+    candidate.hull.push_back(origin + a.x() * candidate.u + a.y() * candidate.v);
+    candidate.area += 0.5f * (a.x() * b.y() - b.x() * a.y());
+    centroid_2d += a;
+  }
+  if (!candidate.hull_2d.empty()) centroid_2d /= static_cast<float>(candidate.hull_2d.size());
+  candidate.centroid = origin + centroid_2d.x() * candidate.u + centroid_2d.y() * candidate.v;
+}
+
+// Points of `cloud` in the height band above the candidate and at least `margin` inside its hull.
+void objectIndices(const Cloud& cloud, const Candidate& candidate, const TableParams& params,
+                   std::vector<int>& indices) {
+  indices.clear();
+  if (candidate.hull_2d.size() < 3) return;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f p = cloud[i].getVector3fMap();
+    if (!p.allFinite()) continue;
+    const float height = candidate.plane.signedDistance(p);
+    if (height < params.min_height || height > params.max_height) continue;
+    const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+    if (insideDistance(candidate.hull_2d, q) >= params.hull_margin) {
+      indices.push_back(static_cast<int>(i));
+    }
+  }
+}
+
+// Up to max_planes planes satisfying the constraint, each with >= min_inliers points; the
+// inliers of each are removed before the next is searched.
+std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
+                                  const NormalConstraint& constraint) {
+  std::vector<int> remaining;
+  remaining.reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud[i].getVector3fMap().allFinite()) remaining.push_back(static_cast<int>(i));
+  }
+  std::mt19937 rng(42);  // deterministic: the same frame gives the same table
+  std::vector<Candidate> candidates;
+  const size_t min_inliers = static_cast<size_t>(std::max(3, params.min_inliers));
+  for (int round = 0; round < params.max_planes && remaining.size() >= min_inliers; ++round) {
+    Candidate candidate;
+    if (!ransacPlane(cloud, remaining, params, constraint, rng, candidate.plane,
+                     candidate.inliers)) {
+      break;
+    }
+    if (candidate.inliers.size() < min_inliers) break;  // later planes are smaller still
+    // Remove the inliers (both index lists are sorted).
+    std::vector<int> rest;
+    rest.reserve(remaining.size() - candidate.inliers.size());
+    std::set_difference(remaining.begin(), remaining.end(), candidate.inliers.begin(),
+                        candidate.inliers.end(), std::back_inserter(rest));
+    remaining.swap(rest);
+    buildHull(cloud, candidate);
+    candidates.push_back(std::move(candidate));
+  }
+  return candidates;
+}
+
+// True when `top` looks like the top face of an object standing on `base`.
+bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams& params) {
+  if (top.area >= kObjectTopAreaFraction * base.area) return false;
+  const float height = base.plane.signedDistance(top.centroid);
+  if (height < params.min_height || height > params.max_height) return false;
+  const Eigen::Vector2f q(base.u.dot(top.centroid), base.v.dot(top.centroid));
+  return insideDistance(base.hull_2d, q) > 0.0f;
+}
+
+// The support plane among the candidates: the highest one (nearest the camera along its normal,
+// i.e. smallest d) with objects on it that is not itself an object's top; when none carries
+// objects, the highest one. Returns -1 for no candidates. Tables, floors and box tops are level
+// together: a candidate tilted against the dominant (first, largest) plane is a RANSAC sliver
+// through box tops and noise, never a support (seen on rendered scenes at 0.6-1.3 m).
+int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
+                  const TableParams& params) {
+  if (candidates.empty()) return -1;
+  std::vector<int> order(candidates.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return candidates[a].plane.d < candidates[b].plane.d; });
+  std::vector<int> objects;
+  for (size_t rank = 0; rank < order.size(); ++rank) {
+    const Candidate& candidate = candidates[order[rank]];
+    if (candidate.plane.normal.dot(candidates.front().plane.normal) < kParallelCosine) continue;
+    bool object_top = false;
+    for (size_t lower = rank + 1; lower < order.size() && !object_top; ++lower) {
+      object_top = isObjectTop(candidate, candidates[order[lower]], params);
+    }
+    if (object_top) continue;
+    objectIndices(cloud, candidate, params, objects);
+    if (static_cast<int>(objects.size()) >= kMinSupportedPoints) return order[rank];
+  }
+  for (int index : order) {  // none carries objects: the highest level plane
+    if (candidates[index].plane.normal.dot(candidates.front().plane.normal) >= kParallelCosine) {
+      return index;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
+  TableResult result;
+  result.table_points = std::make_shared<Cloud>();
+  result.object_points = std::make_shared<Cloud>();
+  if (!cloud || cloud->empty()) {
+    result.reason = "empty cloud";
+    return result;
+  }
+  result.table_points->header = cloud->header;
+  result.object_points->header = cloud->header;
+  const float up_norm = params_.up.norm();
+  if (!(up_norm > 0.0f) || !params_.up.allFinite()) {
+    result.reason = "invalid up vector";
+    return result;
+  }
+  const NormalConstraint constraint{params_.up / up_norm,
+                                    std::cos(degToRad(params_.up_tolerance_deg)), false};
+  const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint);
+  if (candidates.empty()) {
+    result.reason = "no plane within " + std::to_string(params_.up_tolerance_deg) +
+                    " deg of up with at least " + std::to_string(params_.min_inliers) +
+                    " points";
+    return result;
+  }
+  const Candidate& table = candidates[selectSupport(*cloud, candidates, params_)];
+
+  result.found = true;
+  result.plane = table.plane;
+  result.inliers = static_cast<int>(table.inliers.size());
+  result.hull = table.hull;
+  result.table_points->reserve(table.inliers.size());
+  for (int i : table.inliers) result.table_points->push_back((*cloud)[i]);
+
+  std::vector<int> objects;
+  objectIndices(*cloud, table, params_, objects);
+  auto above = std::make_shared<Cloud>();
+  above->header = cloud->header;
+  above->reserve(objects.size());
+  for (int i : objects) above->push_back((*cloud)[i]);
+  removeStatisticalOutliers(above, params_.outlier_k, params_.outlier_alpha,
+                            *result.object_points);
+  return result;
+}
+
+bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane& plane) {
+  // Eq. 4-8 minimise sum (A x + B y + C z + D)^2 with one coefficient fixed. The paper fixes
+  // D = -1, which fails for a plane through the origin (D = 0); we fix instead the normal
+  // component the plane leans on most, which is never 0 for that plane. The input plane only
+  // gives the orientation of the result. The normal equations of the three free coefficients
+  // are solved on centred coordinates (D then follows from the centroid), the numerically
+  // stable form of eq. 8.
+  if (indices.size() < 3) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  size_t count = 0;
+  for (int i : indices) {
+    if (i < 0 || static_cast<size_t>(i) >= points.size()) return false;
+    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+    if (!p.allFinite()) continue;
+    mean += p;
+    ++count;
+  }
+  if (count < 3) return false;
+  mean /= static_cast<double>(count);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (int i : indices) {
+    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3d q = p - mean;
+    scatter += q * q.transpose();
+  }
+
+  // The fixed coefficient: the normal component that is largest for these points (from the
+  // scatter's least-variance direction, so a poor initial plane cannot pick a degenerate one).
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+  const Eigen::Vector3d least_variance = eigen.eigenvectors().col(0);
+  int axes[3] = {0, 1, 2};
+  std::sort(axes, axes + 3, [&](int a, int b) {
+    return std::abs(least_variance[a]) > std::abs(least_variance[b]);
+  });
+  const double trace = scatter.trace();
+  if (!(trace > 0.0)) return false;
+  for (int k : axes) {
+    const int i = (k + 1) % 3, j = (k + 2) % 3;
+    // Minimise sum (q_k + a q_i + b q_j)^2: [S_ii S_ij; S_ij S_jj] (a b) = -(S_ik S_jk).
+    Eigen::Matrix2d normal_matrix;
+    normal_matrix << scatter(i, i), scatter(i, j), scatter(i, j), scatter(j, j);
+    const double det = normal_matrix.determinant();
+    if (!(std::abs(det) > 1e-12 * trace * trace)) continue;  // degenerate in this direction
+    const Eigen::Vector2d ab = normal_matrix.inverse() * -Eigen::Vector2d(scatter(i, k),
+                                                                          scatter(j, k));
+    Eigen::Vector3d n;
+    n[k] = 1.0;
+    n[i] = ab.x();
+    n[j] = ab.y();
+    n.normalize();
+    if (!n.allFinite()) continue;
+    Eigen::Vector3f normal = n.cast<float>();
+    if (normal.dot(plane.normal) < 0.0f) normal = -normal;  // keep the caller's orientation
+    plane.normal = normal;
+    plane.d = static_cast<float>(-normal.cast<double>().dot(mean));
+    return true;
+  }
+  return false;  // collinear or coincident points
+}
+
+void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Cloud& out) {
+  out.clear();
+  if (!in) return;
+  out.header = in->header;
+  // Too few points for k-neighbour statistics: keep them all.
+  if (k <= 0 || static_cast<int>(in->size()) <= k) {
+    out = *in;
+    return;
+  }
+  pcl::StatisticalOutlierRemoval<Point> filter;
+  filter.setInputCloud(in);
+  filter.setMeanK(k);
+  filter.setStddevMulThresh(alpha);
+  filter.filter(out);
+  out.header = in->header;
+}
+
+bool estimateUp(const CloudConstPtr& cloud, const TableParams& params, Eigen::Vector3f& up) {
+  if (!cloud || cloud->empty()) return false;
+  // Candidates: large planes with the camera on their positive side whose normal points up in
+  // the image (walls facing the camera and box faces do not).
+  const NormalConstraint constraint{Eigen::Vector3f(0.0f, -1.0f, 0.0f), kMinImageUpCosine, true};
+  const std::vector<Candidate> candidates = findPlanes(*cloud, params, constraint);
+  if (candidates.empty()) return false;
+  // Up is a direction shared by the table, the floor and shelves: take the direction with the
+  // most inliers summed over the candidates parallel to it (within up_tolerance_deg). This
+  // keeps a tilted plane in the background (a chair, a screen's top) from setting "up" just
+  // because it is nearer the camera.
+  const float min_cos = std::cos(degToRad(params.up_tolerance_deg));
+  auto parallel = [&](const Candidate& a, const Candidate& b) {
+    return a.plane.normal.dot(b.plane.normal) >= min_cos;
+  };
+  size_t best_support = 0;
+  const Candidate* direction = nullptr;
+  for (const Candidate& a : candidates) {
+    size_t support = 0;
+    for (const Candidate& b : candidates) support += parallel(a, b) ? b.inliers.size() : 0;
+    if (support > best_support) best_support = support, direction = &a;
+  }
+  std::vector<Candidate> group;
+  for (const Candidate& candidate : candidates) {
+    if (parallel(*direction, candidate)) group.push_back(candidate);
+  }
+  // Within that direction, the support plane is chosen as TableSegmenter::segment does.
+  up = group[selectSupport(*cloud, group, params)].plane.normal;
+  return true;
+}
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,169 @@
+// tabletop_shapes/ShapeEstimation (paper 3): a box, cylinder or truncated cone per cluster.
+// Subscribes: table (tabletop_shapes/Table) and clusters (pcl::PointCloud<pcl::PointXYZL>),
+//   paired by their identical stamps (exact time).
+// Publishes, once per frame (also when nothing was found):
+//   objects (tabletop_shapes/Objects)
+//   markers (visualization_msgs/MarkerArray): solids, labels, table hull; stale ones deleted
+//   cubes / cylinders / cones (tabletop_shapes/Cube, Cylinder, Cone): one message per object,
+//     only while someone subscribes
+// Parameters: cfg/ShapeEstimation.cfg (dynamic_reconfigure);
+//   ~output_frame (string, "": the cloud's frame): results transformed with tf2; a missing
+//     transform skips the frame with a throttled warning
+//   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
+#include "tabletop_shapes/core/shape_estimator.h"
+#include "tabletop_shapes/ros/conversions.h"
+#include "tabletop_shapes/ros/reconfigure.h"
+#include "tabletop_shapes/ros/stage_monitor.h"
+#include "tabletop_shapes/ShapeEstimationConfig.h"
+
+#include <dynamic_reconfigure/server.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/time_synchronizer.h>
+#include <nodelet/nodelet.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <pcl_ros/point_cloud.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <memory>
+#include <mutex>
+
+namespace tabletop_shapes {
+
+using LabeledCloud = pcl::PointCloud<pcl::PointXYZL>;
+
+class ShapeEstimationNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& node = getNodeHandle();
+    ros::NodeHandle& private_node = getPrivateNodeHandle();
+    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
+    output_frame_ = private_node.param<std::string>("output_frame", "");
+    tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
+    if (!output_frame_.empty()) {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
+    }
+    const std::vector<std::string> stages{"normals", "predictor", "cube", "cylinder", "cone"};
+    bridge::seedCoreDefaults(private_node, stages);
+    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ShapeEstimationConfig>>(
+        reconfigure_mutex_, private_node);
+    reconfigure_->setCallback([this, stages](ShapeEstimationConfig& config, uint32_t) {
+      PipelineParams params;
+      std::string error;
+      if (!bridge::applyConfig(config, stages, params, error)) {
+        NODELET_ERROR("rejected parameters: %s", error.c_str());
+        return;
+      }
+      std::lock_guard<std::mutex> lock(params_mutex_);
+      params_ = params.shapes;
+    });
+
+    objects_publisher_ = node.advertise<Objects>("objects", 5);
+    markers_publisher_ = node.advertise<visualization_msgs::MarkerArray>("markers", 5);
+    cubes_publisher_ = node.advertise<Cube>("cubes", 10);
+    cylinders_publisher_ = node.advertise<Cylinder>("cylinders", 10);
+    cones_publisher_ = node.advertise<Cone>("cones", 10);
+
+    const int queue_size = private_node.param("queue_size", 5);
+    table_subscriber_.subscribe(node, "table", queue_size);
+    clusters_subscriber_.subscribe(node, "clusters", queue_size);
+    synchronizer_ = std::make_unique<message_filters::TimeSynchronizer<Table, LabeledCloud>>(
+        table_subscriber_, clusters_subscriber_, 2 * queue_size);
+    synchronizer_->registerCallback(
+        boost::bind(&ShapeEstimationNodelet::onFrame, this, boost::placeholders::_1,
+                    boost::placeholders::_2));
+  }
+
+  void onFrame(const TableConstPtr& table, const boost::shared_ptr<const LabeledCloud>& clusters) {
+    const bridge::Stopwatch stopwatch;
+    monitor_->countInput(clusters.get());
+    {
+      std::lock_guard<std::mutex> lock(params_mutex_);
+      estimator_.setParams(params_);
+    }
+    Objects objects;
+    objects.header = pcl_conversions::fromPCL(clusters->header);
+    objects.table = *table;
+    objects.table_found = bridge::tableFound(*table);
+    if (objects.table_found) {
+      const Plane plane = bridge::planeFromMsg(*table);
+      for (const CloudPtr& cluster : splitClusters(*clusters)) {
+        bridge::appendObject(estimator_.estimate(cluster, plane), objects.header, objects);
+      }
+    }
+    if (!output_frame_.empty() && output_frame_ != objects.header.frame_id) {
+      try {
+        const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
+            output_frame_, objects.header.frame_id, objects.header.stamp, tf_timeout_);
+        const auto& t = transform.transform.translation;
+        const auto& q = transform.transform.rotation;
+        Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
+        target_from_source.translation() = Eigen::Vector3d(t.x, t.y, t.z);
+        target_from_source.linear() =
+            Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+        bridge::transformObjects(target_from_source, output_frame_, objects);
+      } catch (const tf2::TransformException& error) {
+        const std::string reason = "no transform to output_frame '" + output_frame_ +
+                                   "' from '" + objects.header.frame_id + "': " + error.what();
+        NODELET_WARN_THROTTLE(2.0, "skipping frame: %s", reason.c_str());
+        monitor_->frameSkipped(reason);
+        return;
+      }
+    }
+    publish(objects);
+    monitor_->frameDone(stopwatch.milliseconds(), clusters->size(),
+                        objects.cubes.size() + objects.cylinders.size() + objects.cones.size());
+  }
+
+  static std::vector<CloudPtr> splitClusters(const LabeledCloud& labeled) {
+    std::vector<CloudPtr> clusters;
+    for (const pcl::PointXYZL& p : labeled.points) {
+      if (p.label >= labeled.size()) continue;  // not from Clustering: labels are 0..n-1
+      while (clusters.size() <= p.label) {
+        clusters.push_back(std::make_shared<Cloud>());
+        clusters.back()->header = labeled.header;
+      }
+      clusters[p.label]->push_back(Point(p.x, p.y, p.z));
+    }
+    return clusters;
+  }
+
+  void publish(const Objects& objects) {
+    visualization_msgs::MarkerArray markers;
+    marker_count_ = bridge::buildMarkers(objects, marker_count_, markers);
+    objects_publisher_.publish(objects);
+    markers_publisher_.publish(markers);
+    if (cubes_publisher_.getNumSubscribers() > 0) {
+      for (const Cube& cube : objects.cubes) cubes_publisher_.publish(cube);
+    }
+    if (cylinders_publisher_.getNumSubscribers() > 0) {
+      for (const Cylinder& cylinder : objects.cylinders) cylinders_publisher_.publish(cylinder);
+    }
+    if (cones_publisher_.getNumSubscribers() > 0) {
+      for (const Cone& cone : objects.cones) cones_publisher_.publish(cone);
+    }
+  }
+
+  std::unique_ptr<bridge::StageMonitor> monitor_;
+  std::string output_frame_;
+  ros::Duration tf_timeout_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<ShapeEstimationConfig>> reconfigure_;
+  std::mutex params_mutex_;
+  ShapeEstimatorParams params_;
+  ShapeEstimator estimator_;
+  size_t marker_count_ = 0;  // objects shown by the last MarkerArray
+  ros::Publisher objects_publisher_, markers_publisher_;
+  ros::Publisher cubes_publisher_, cylinders_publisher_, cones_publisher_;
+  message_filters::Subscriber<Table> table_subscriber_;
+  message_filters::Subscriber<LabeledCloud> clusters_subscriber_;
+  std::unique_ptr<message_filters::TimeSynchronizer<Table, LabeledCloud>> synchronizer_;
+};
+
+}  // namespace tabletop_shapes
+
+PLUGINLIB_EXPORT_CLASS(tabletop_shapes::ShapeEstimationNodelet, nodelet::Nodelet)

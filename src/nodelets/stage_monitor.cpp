@@ -1,0 +1,123 @@
+#include "tabletop_shapes/ros/stage_monitor.h"
+
+#include <boost/weak_ptr.hpp>
+#include <diagnostic_msgs/DiagnosticArray.h>
+
+#include <algorithm>
+#include <deque>
+#include <sstream>
+
+namespace tabletop_shapes {
+namespace bridge {
+namespace {
+
+// A cloud stays in the registry until 64 newer ones were published: far longer than a
+// subscriber queue holds it.
+constexpr size_t kRememberedClouds = 64;
+
+struct PublishedCloud {
+  const void* address;
+  boost::weak_ptr<const void> alive;
+};
+
+std::mutex registry_mutex;
+std::deque<PublishedCloud> registry;
+
+diagnostic_msgs::KeyValue keyValue(const std::string& key, const std::string& value) {
+  diagnostic_msgs::KeyValue entry;
+  entry.key = key;
+  entry.value = value;
+  return entry;
+}
+
+template <typename T>
+diagnostic_msgs::KeyValue keyValue(const std::string& key, T value) {
+  std::ostringstream text;
+  text << value;
+  return keyValue(key, text.str());
+}
+
+}  // namespace
+
+void markPublished(const boost::shared_ptr<const void>& cloud) {
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  registry.push_back({cloud.get(), cloud});
+  while (registry.size() > kRememberedClouds) registry.pop_front();
+}
+
+bool wasPublishedInProcess(const void* cloud) {
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  // While the published object is alive (not expired) no other object can have its address.
+  return std::any_of(registry.begin(), registry.end(), [&](const PublishedCloud& entry) {
+    return entry.address == cloud && !entry.alive.expired();
+  });
+}
+
+StageMonitor::StageMonitor(ros::NodeHandle& node, const std::string& name) : name_(name) {
+  publisher_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+  timer_ = node.createSteadyTimer(ros::WallDuration(1.0), &StageMonitor::publish, this);
+}
+
+void StageMonitor::countInput(const void* cloud) {
+  const bool shared = wasPublishedInProcess(cloud);
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++(shared ? inputs_shared_ : inputs_copied_);
+}
+
+void StageMonitor::frameDone(double milliseconds, size_t points_in, size_t points_out) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++frames_;
+  ++window_frames_;
+  last_ms_ = milliseconds;
+  last_points_in_ = points_in;
+  last_points_out_ = points_out;
+  window_sum_ms_ += milliseconds;
+  window_max_ms_ = std::max(window_max_ms_, milliseconds);
+}
+
+void StageMonitor::frameSkipped(const std::string& reason) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++skipped_;
+  ++window_skipped_;
+  last_skip_reason_ = reason;
+}
+
+void StageMonitor::publish(const ros::SteadyTimerEvent&) {
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = name_ + ": processing";
+  status.hardware_id = "tabletop_shapes";
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (window_skipped_ > 0) {
+      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      status.message = "frames skipped: " + last_skip_reason_;
+    } else if (window_frames_ == 0) {
+      status.level = diagnostic_msgs::DiagnosticStatus::OK;
+      status.message = "waiting for input";
+    } else {
+      status.level = diagnostic_msgs::DiagnosticStatus::OK;
+      status.message = "ok";
+    }
+    const double mean_ms = window_frames_ > 0 ? window_sum_ms_ / window_frames_ : 0.0;
+    status.values = {keyValue("frames", frames_),
+                     keyValue("frames skipped", skipped_),
+                     keyValue("frames in last period", window_frames_),
+                     keyValue("last frame [ms]", last_ms_),
+                     keyValue("mean frame in last period [ms]", mean_ms),
+                     keyValue("max frame in last period [ms]", window_max_ms_),
+                     keyValue("points in (last frame)", last_points_in_),
+                     keyValue("points out (last frame)", last_points_out_),
+                     keyValue("input clouds shared (zero-copy)", inputs_shared_),
+                     keyValue("input clouds copied", inputs_copied_),
+                     keyValue("last skip reason", last_skip_reason_)};
+    window_frames_ = window_skipped_ = 0;
+    window_sum_ms_ = window_max_ms_ = 0.0;
+  }
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  array.status.push_back(status);
+  publisher_.publish(array);
+}
+
+}  // namespace bridge
+}  // namespace tabletop_shapes

@@ -1,0 +1,215 @@
+#include "tabletop_shapes/sim/evaluation.h"
+
+#include <pcl/kdtree/kdtree_flann.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+namespace tabletop_shapes {
+namespace sim {
+namespace {
+
+double frustumVolume(double r0, double r1, double h) {
+  return kPi * h * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0;
+}
+
+Measure measure(const std::string& name, double estimate, double truth) {
+  return {name, estimate, truth, relativeErrorPercent(estimate, truth)};
+}
+
+Eigen::Vector3f sortedDescending(Eigen::Vector3f v) {
+  std::sort(v.data(), v.data() + 3, std::greater<float>());
+  return v;
+}
+
+bool isRound(ShapeType type) { return type == ShapeType::Cylinder || type == ShapeType::Cone; }
+
+// Point-in-convex-polygon on the table plane: the hull is ordered, so the point must be on the
+// same side of every edge.
+bool insideHull(const std::vector<Eigen::Vector3f>& hull, const Eigen::Vector3f& normal,
+                const Eigen::Vector3f& p) {
+  if (hull.size() < 3) return false;
+  int sign = 0;
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector3f& a = hull[i];
+    const Eigen::Vector3f& b = hull[(i + 1) % hull.size()];
+    const float side = normal.dot((b - a).cross(p - a));
+    const int s = side > 0 ? 1 : (side < 0 ? -1 : 0);
+    if (s == 0) continue;
+    if (sign == 0) sign = s;
+    if (s != sign) return false;
+  }
+  return true;
+}
+
+double ratio(double numerator, double denominator) {
+  return denominator > 0 ? numerator / denominator : 0.0;
+}
+
+}  // namespace
+
+double relativeErrorPercent(double estimate, double truth) {
+  return std::abs(estimate - truth) / truth * 100.0;
+}
+
+double percentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(values.begin(), values.end());
+  const double position = fraction * (values.size() - 1);
+  const size_t below = static_cast<size_t>(std::floor(position));
+  const size_t above = std::min(below + 1, values.size() - 1);
+  return values[below] + (position - below) * (values[above] - values[below]);
+}
+
+double volume(const ShapeFit& fit) {
+  if (!fit.ok) return 0.0;
+  switch (fit.type) {
+    case ShapeType::Cube:
+      return static_cast<double>(fit.dimensions.x()) * fit.dimensions.y() * fit.dimensions.z();
+    case ShapeType::Cylinder:
+      return frustumVolume(fit.radius, fit.radius, fit.height);
+    case ShapeType::Cone:
+      return frustumVolume(fit.radius_bottom, fit.radius_top, fit.height);
+    case ShapeType::Unknown:
+      break;
+  }
+  return 0.0;
+}
+
+double volume(const GroundTruthObject& object) {
+  if (object.type == ShapeType::Cube) {
+    return static_cast<double>(object.dimensions.x()) * object.dimensions.y() *
+           object.dimensions.z();
+  }
+  return frustumVolume(object.radius_bottom, object.radius_top, object.height);
+}
+
+std::vector<Match> matchByCenter(const std::vector<GroundTruthObject>& truth,
+                                 const std::vector<ShapeFit>& detections, double max_distance) {
+  std::vector<Match> candidates;
+  for (size_t t = 0; t < truth.size(); ++t) {
+    for (size_t d = 0; d < detections.size(); ++d) {
+      const double distance = (truth[t].center - detections[d].center).norm();
+      if (distance < max_distance) {
+        candidates.push_back({static_cast<int>(t), static_cast<int>(d), distance});
+      }
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Match& a, const Match& b) { return a.center_distance < b.center_distance; });
+  std::vector<bool> truth_used(truth.size()), detection_used(detections.size());
+  std::vector<Match> matches;
+  for (const Match& m : candidates) {
+    if (truth_used[m.truth] || detection_used[m.detection]) continue;
+    truth_used[m.truth] = detection_used[m.detection] = true;
+    matches.push_back(m);
+  }
+  return matches;
+}
+
+std::vector<Measure> compareToTruth(const GroundTruthObject& truth, const ShapeFit& fit) {
+  std::vector<Measure> measures;
+  if (!fit.ok) return measures;
+  if (truth.type == ShapeType::Cube && fit.type == ShapeType::Cube) {
+    const Eigen::Vector3f t = sortedDescending(truth.dimensions);
+    const Eigen::Vector3f e = sortedDescending(fit.dimensions);
+    measures.push_back(measure("length", e[0], t[0]));
+    measures.push_back(measure("width", e[1], t[1]));
+    measures.push_back(measure("height", e[2], t[2]));
+  } else if (isRound(truth.type) && isRound(fit.type)) {
+    const double bottom = fit.type == ShapeType::Cone ? fit.radius_bottom : fit.radius;
+    const double top = fit.type == ShapeType::Cone ? fit.radius_top : fit.radius;
+    if (truth.type == ShapeType::Cylinder) {
+      measures.push_back(measure("radius", (bottom + top) / 2, truth.radius_bottom));
+    } else {
+      measures.push_back(measure("radius_bottom", bottom, truth.radius_bottom));
+      measures.push_back(measure("radius_top", top, truth.radius_top));
+    }
+    measures.push_back(measure("height", fit.height, truth.height));
+  }
+  measures.push_back(measure("volume", volume(fit), volume(truth)));
+  return measures;
+}
+
+LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
+                                 const SceneResult& result, int min_object_points,
+                                 float table_distance, float cluster_distance) {
+  LabelledScore score;
+  for (const ShapeFit& fit : result.objects) {
+    score.types.push_back(shapeTypeName(fit.ok ? fit.type : ShapeType::Unknown));
+  }
+  // All cluster points in one k-d tree, each tagged with its cluster.
+  auto cluster_points = std::make_shared<Cloud>();
+  std::vector<int> cluster_of;
+  for (size_t c = 0; c < result.clusters.size(); ++c) {
+    for (const auto& p : result.clusters[c]->points) {
+      cluster_points->push_back(p);
+      cluster_of.push_back(static_cast<int>(c));
+    }
+  }
+  pcl::KdTreeFLANN<Point> tree;
+  if (!cluster_points->empty()) tree.setInputCloud(cluster_points);
+
+  double table_tp = 0, table_fp = 0, table_fn = 0, object_tp = 0, object_fp = 0, object_fn = 0;
+  std::map<int, std::map<int, int>> clusters_of_object;  // object -> cluster -> points
+  std::map<int, std::map<int, int>> objects_of_cluster;  // cluster -> object -> points
+  std::map<int, int> object_size;
+  std::vector<int> index(1);
+  std::vector<float> squared_distance(1);
+  for (const auto& p : cloud.points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.label == 0) {
+      continue;
+    }
+    const Eigen::Vector3f v = p.getVector3fMap();
+    const bool truly_table = p.label < 10;
+    const int object = truly_table ? -1 : static_cast<int>(p.label / 10) - 1;
+    const bool said_table =
+        result.table.found && std::abs(result.table.plane.signedDistance(v)) < table_distance &&
+        insideHull(result.table.hull, result.table.plane.normal, v);
+    table_tp += said_table && truly_table;
+    table_fp += said_table && !truly_table;
+    table_fn += !said_table && truly_table;
+
+    int cluster = -1;
+    if (!cluster_points->empty() && tree.nearestKSearch(Point(p.x, p.y, p.z), 1, index, squared_distance) > 0 &&
+        squared_distance[0] < cluster_distance * cluster_distance) {
+      cluster = cluster_of[index[0]];
+    }
+    object_tp += cluster >= 0 && !truly_table;
+    object_fp += cluster >= 0 && truly_table;
+    object_fn += cluster < 0 && !truly_table;
+    if (!truly_table) {
+      ++object_size[object];
+      if (cluster >= 0) {
+        ++clusters_of_object[object][cluster];
+        ++objects_of_cluster[cluster][object];
+      }
+    }
+  }
+  score.table_precision = ratio(table_tp, table_tp + table_fp);
+  score.table_recall = ratio(table_tp, table_tp + table_fn);
+  score.object_precision = ratio(object_tp, object_tp + object_fp);
+  score.object_recall = ratio(object_tp, object_tp + object_fn);
+
+  // Found whole: one cluster holds >= 70 % of the object's points, and >= 70 % of that
+  // cluster's labelled object points are this object's (not merged with a neighbour).
+  for (const auto& [object, size] : object_size) {
+    if (size < min_object_points) continue;
+    ++score.labelled_objects;
+    const auto& clusters = clusters_of_object[object];
+    if (clusters.empty()) continue;
+    const auto best = std::max_element(clusters.begin(), clusters.end(),
+                                       [](auto& a, auto& b) { return a.second < b.second; });
+    int cluster_total = 0;
+    for (const auto& entry : objects_of_cluster[best->first]) cluster_total += entry.second;
+    if (best->second >= 0.7 * size && best->second >= 0.7 * cluster_total) {
+      ++score.objects_found_whole;
+    }
+  }
+  return score;
+}
+
+}  // namespace sim
+}  // namespace tabletop_shapes

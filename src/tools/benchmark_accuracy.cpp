@@ -1,0 +1,418 @@
+// benchmark_accuracy: the paper's Tables 2-3 and Fig. 12 on rendered Kinect scenes, plus
+// segmentation scores on real labelled OSD scenes.
+//   benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S] [--up auto]
+//                      [--osd DIR] [--out DIR] [--no-plots]
+#include "tabletop_shapes/core/pipeline.h"
+#include "tabletop_shapes/sim/evaluation.h"
+#include "tabletop_shapes/sim/scene_renderer.h"
+
+#include <pcl/io/pcd_io.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <set>
+
+using namespace tabletop_shapes;
+using namespace tabletop_shapes::sim;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Options {
+  int paper_scenes = 40;
+  int random_scenes = 60;
+  uint32_t seed = 2012;
+  bool auto_up = false;
+  std::string osd_dir;
+  std::string out_dir = "benchmark-output";
+  bool plots = true;
+  bool verbose = false;  // per scene: every true object and every detection
+};
+
+// The paper's Tables 2-3: relative error [%] per object and measure.
+const std::map<std::string, std::map<std::string, double>> kPaperErrors = {
+    {"milk-tea box", {{"length", 2.07}, {"width", 3.78}, {"height", 13.89}, {"volume", 15.72}}},
+    {"teapot box", {{"length", 4.40}, {"width", 4.62}, {"height", 4.96}, {"volume", 11.82}}},
+    {"mug", {{"radius", 24.14}, {"height", 3.83}, {"volume", 40.22}}},
+    {"beaker",
+     {{"radius_bottom", 10.0}, {"radius_top", 10.0}, {"height", 5.27}, {"volume", 15.22}}}};
+const char* kPaperObjects[] = {"milk-tea box", "teapot box", "mug", "beaker"};
+
+// One true object as the pipeline saw it.
+struct Sample {
+  std::string name;
+  ShapeType truth_type = ShapeType::Unknown;
+  ShapeType found_type = ShapeType::Unknown;  // Unknown: unfitted or missed
+  bool detected = false;
+  double range = 0.0;  // camera to the object's centre [m]
+  int faces_seen = 0;
+  int visible_pixels = 0;
+  std::vector<Measure> measures;
+  double volume_estimate = 0.0, volume_truth = 0.0;
+};
+
+void progress(int done, int total) {
+  const int width = 40, filled = total ? done * width / total : width;
+  std::fprintf(stderr, "\r[%s%s] %d/%d scenes", std::string(filled, '#').c_str(),
+               std::string(width - filled, '.').c_str(), done, total);
+  if (done == total) std::fprintf(stderr, "\n");
+}
+
+// The paper's four objects in a jittered 2 x 2 grid, random slots and yaws, random camera.
+SceneSpec paperObjectsScene(std::mt19937& rng) {
+  std::uniform_real_distribution<float> distance(0.6f, 1.5f), tilt(20.0f, 60.0f),
+      yaw(0.0f, 360.0f), jitter(-0.015f, 0.015f), object_yaw(0.0f, static_cast<float>(kPi));
+  CameraPlacement placement{distance(rng), tilt(rng), yaw(rng)};
+  SceneSpec spec = paperScene(placement, NoiseModel(), static_cast<uint32_t>(rng()));
+  std::vector<Eigen::Vector2f> slots = {{-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f},
+                                        {0.13f, 0.13f}};
+  std::shuffle(slots.begin(), slots.end(), rng);
+  for (size_t i = 0; i < spec.objects.size(); ++i) {
+    spec.objects[i].position_on_table = slots[i] + Eigen::Vector2f(jitter(rng), jitter(rng));
+    spec.objects[i].yaw = object_yaw(rng);
+  }
+  return spec;
+}
+
+struct Tally {
+  std::vector<Sample> samples;
+  int false_positives = 0;
+  int scenes_without_table = 0;
+  std::vector<double> frame_ms;
+};
+
+void printScene(const RenderedScene& scene, const SceneResult& result,
+                const std::vector<Match>& matches) {
+  auto fitText = [](const ShapeFit& f) {
+    char text[200];
+    if (!f.ok) {
+      std::snprintf(text, sizeof text, "unknown (%d points): %s", f.points, f.reason.c_str());
+    } else if (f.type == ShapeType::Cube) {
+      std::snprintf(text, sizeof text, "cube %.3f x %.3f x %.3f faces %d", f.dimensions.x(),
+                    f.dimensions.y(), f.dimensions.z(), f.faces_seen);
+    } else {
+      std::snprintf(text, sizeof text, "%s r %.4f-%.4f h %.3f", shapeTypeName(f.type),
+                    f.type == ShapeType::Cone ? f.radius_bottom : f.radius,
+                    f.type == ShapeType::Cone ? f.radius_top : f.radius, f.height);
+    }
+    return std::string(text);
+  };
+  std::printf("scene seed %u: distance %.2f tilt %.0f yaw %.0f; table %s (%d inliers)\n",
+              scene.spec.seed, scene.spec.placement.distance, scene.spec.placement.tilt_deg,
+              scene.spec.placement.yaw_deg, result.table.found ? "found" : "NOT found",
+              result.table.inliers);
+  std::vector<bool> matched(result.objects.size());
+  for (size_t t = 0; t < scene.objects.size(); ++t) {
+    const GroundTruthObject& o = scene.objects[t];
+    std::printf("  truth %-15s at %6.3f %6.3f %6.3f (%5d px) -> ", o.name.c_str(), o.center.x(),
+                o.center.y(), o.center.z(), o.visible_pixels);
+    const auto m = std::find_if(matches.begin(), matches.end(),
+                                [&](const Match& m) { return m.truth == static_cast<int>(t); });
+    if (m == matches.end()) {
+      std::printf("MISSED\n");
+      continue;
+    }
+    matched[m->detection] = true;
+    std::printf("%s (%.1f mm off)\n", fitText(result.objects[m->detection]).c_str(),
+                1000 * m->center_distance);
+  }
+  for (size_t d = 0; d < result.objects.size(); ++d) {
+    if (matched[d]) continue;
+    const ShapeFit& f = result.objects[d];
+    std::printf("  FALSE POSITIVE at %6.3f %6.3f %6.3f: %s\n", f.center.x(), f.center.y(),
+                f.center.z(), fitText(f).c_str());
+  }
+}
+
+void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
+  const RenderedScene scene = renderScene(spec);
+  PipelineParams params;
+  params.auto_up = options.auto_up;
+  params.table.up = scene.up;  // what tf2 would give a robot
+  Pipeline pipeline(params);
+  const SceneResult result = pipeline.process(*scene.cloud);
+  tally.frame_ms.push_back(result.times.total_ms);
+  if (!result.table.found) ++tally.scenes_without_table;
+
+  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.06);
+  std::vector<int> detection_of(scene.objects.size(), -1);
+  for (const Match& m : matches) detection_of[m.truth] = m.detection;
+  tally.false_positives += static_cast<int>(result.objects.size() - matches.size());
+  if (options.verbose) printScene(scene, result, matches);
+  for (size_t t = 0; t < scene.objects.size(); ++t) {
+    const GroundTruthObject& truth = scene.objects[t];
+    Sample sample;
+    sample.name = truth.name;
+    sample.truth_type = truth.type;
+    sample.range = truth.center.norm();
+    sample.visible_pixels = truth.visible_pixels;
+    sample.volume_truth = volume(truth);
+    if (detection_of[t] >= 0) {
+      const ShapeFit& fit = result.objects[detection_of[t]];
+      sample.detected = true;
+      sample.found_type = fit.ok ? fit.type : ShapeType::Unknown;
+      sample.faces_seen = fit.faces_seen;
+      sample.measures = compareToTruth(truth, fit);
+      sample.volume_estimate = volume(fit);
+    }
+    tally.samples.push_back(sample);
+  }
+}
+
+std::vector<double> errorsOf(const std::vector<const Sample*>& samples,
+                             const std::function<bool(const Measure&)>& wanted) {
+  std::vector<double> errors;
+  for (const Sample* s : samples) {
+    for (const Measure& m : s->measures) {
+      if (wanted(m)) errors.push_back(m.error_percent);
+    }
+  }
+  return errors;
+}
+
+bool isVolume(const Measure& m) { return m.name == "volume"; }
+bool isDimension(const Measure& m) { return m.name != "volume"; }
+
+void printPaperTable(const Tally& tally) {
+  std::printf(
+      "\nThe paper's objects at 0.6-1.2 m: relative error (eq. 17), median and 90th percentile"
+      "\n(box edges sorted length >= width >= height; goal: median <= 2 %% on dimensions, <= 5 %%"
+      " on volume)\n\n");
+  std::printf("%-13s %-14s %5s %9s %9s %9s  %s\n", "object", "measure", "n", "median", "p90",
+              "paper", "goal");
+  for (const char* object : kPaperObjects) {
+    std::vector<const Sample*> near;
+    for (const Sample& s : tally.samples) {
+      if (s.name == object && s.range >= 0.6 && s.range < 1.2) near.push_back(&s);
+    }
+    // The paper's column order: edges or radii, height, volume.
+    for (const char* name :
+         {"length", "width", "radius", "radius_bottom", "radius_top", "height", "volume"}) {
+      if (!kPaperErrors.at(object).count(name)) continue;
+      const std::vector<double> errors =
+          errorsOf(near, [&](const Measure& m) { return m.name == name; });
+      const double median = percentile(errors, 0.5), p90 = percentile(errors, 0.9);
+      const double goal = std::string(name) == "volume" ? 5.0 : 2.0;
+      std::printf("%-13s %-14s %5zu %8.2f%% %8.2f%% %8.2f%%  %s\n", object, name,
+                  errors.size(), median, p90, kPaperErrors.at(object).at(name),
+                  errors.empty() ? "-" : (median <= goal ? "met" : "MISSED"));
+    }
+  }
+}
+
+void printDetection(const Tally& tally) {
+  const std::vector<ShapeType> types = {ShapeType::Cube, ShapeType::Cylinder, ShapeType::Cone};
+  std::map<ShapeType, std::map<std::string, int>> confusion;
+  int detected = 0, right = 0, counted = 0;
+  for (const Sample& s : tally.samples) {
+    if (s.visible_pixels < 200) continue;  // hidden behind another object or out of view
+    ++counted;
+    detected += s.detected;
+    right += s.detected && s.found_type == s.truth_type;
+    confusion[s.truth_type][s.detected ? shapeTypeName(s.found_type) : "missed"]++;
+  }
+  std::printf("\nDetection and type, every object with >= 200 visible pixels (%d of %zu)\n",
+              counted, tally.samples.size());
+  std::printf("  detected %d / %d = %.1f %%, type right %d / %d = %.1f %%, false positives %d,"
+              " scenes without table %d\n",
+              detected, counted, 100.0 * detected / std::max(counted, 1), right, detected,
+              100.0 * right / std::max(detected, 1), tally.false_positives,
+              tally.scenes_without_table);
+  std::printf("\n  %-10s %8s %8s %8s %8s %8s\n", "truth", "cube", "cylinder", "cone", "unknown",
+              "missed");
+  for (ShapeType t : types) {
+    auto& row = confusion[t];
+    std::printf("  %-10s %8d %8d %8d %8d %8d\n", shapeTypeName(t), row["cube"], row["cylinder"],
+                row["cone"], row["unknown"], row["missed"]);
+  }
+}
+
+void printBreakdowns(const Tally& tally, const Options& options) {
+  std::printf("\nMedian relative error against range, all objects (n = objects detected)\n");
+  std::printf("  %-12s %5s %12s %12s\n", "range", "n", "dimensions", "volume");
+  std::ofstream range_data(options.out_dir + "/error_vs_range.dat");
+  range_data << "# range_centre median_dimension_error_percent median_volume_error_percent n\n";
+  for (double low : {0.6, 0.9, 1.2}) {
+    std::vector<const Sample*> bin;
+    for (const Sample& s : tally.samples) {
+      if (s.detected && s.range >= low && s.range < low + 0.3) bin.push_back(&s);
+    }
+    const double dims = percentile(errorsOf(bin, isDimension), 0.5);
+    const double vol = percentile(errorsOf(bin, isVolume), 0.5);
+    std::printf("  %.1f-%.1f m    %5zu %11.2f%% %11.2f%%\n", low, low + 0.3, bin.size(), dims, vol);
+    range_data << low + 0.15 << " " << dims << " " << vol << " " << bin.size() << "\n";
+  }
+  std::printf("\nBoxes: median relative error against faces seen\n");
+  std::printf("  %-6s %5s %12s %12s\n", "faces", "n", "edges", "volume");
+  for (int faces = 1; faces <= 3; ++faces) {
+    std::vector<const Sample*> bin;
+    for (const Sample& s : tally.samples) {
+      if (s.detected && s.found_type == ShapeType::Cube && s.faces_seen == faces) {
+        bin.push_back(&s);
+      }
+    }
+    std::printf("  %-6d %5zu %11.2f%% %11.2f%%\n", faces, bin.size(),
+                percentile(errorsOf(bin, isDimension), 0.5),
+                percentile(errorsOf(bin, isVolume), 0.5));
+  }
+  std::printf("\nOther sizes (random objects, all ranges): median relative error\n");
+  for (const char* name : {"random box", "random cylinder", "random cone"}) {
+    std::vector<const Sample*> bin;
+    for (const Sample& s : tally.samples) {
+      if (s.detected && s.name == name) bin.push_back(&s);
+    }
+    std::printf("  %-16s n %3zu  dimensions %6.2f%%  volume %6.2f%%\n", name, bin.size(),
+                percentile(errorsOf(bin, isDimension), 0.5),
+                percentile(errorsOf(bin, isVolume), 0.5));
+  }
+  std::vector<double> ms = tally.frame_ms;
+  std::printf("\nPipeline time per VGA frame: median %.1f ms, p90 %.1f ms (%zu frames)\n",
+              percentile(ms, 0.5), percentile(ms, 0.9), ms.size());
+}
+
+void writeFig12(const Tally& tally, const Options& options) {
+  std::ofstream data(options.out_dir + "/fig12_volumes.dat");
+  data << "# index name min_volume median_volume max_volume true_volume   [m^3], 0.6-1.2 m\n";
+  int index = 1;
+  for (const char* object : kPaperObjects) {
+    std::vector<double> volumes;
+    double truth = 0;
+    for (const Sample& s : tally.samples) {
+      if (s.name != object) continue;
+      truth = s.volume_truth;
+      if (s.detected && s.volume_estimate > 0 && s.range >= 0.6 && s.range < 1.2) {
+        volumes.push_back(s.volume_estimate);
+      }
+    }
+    if (volumes.empty()) continue;
+    data << index++ << " \"" << object << "\" " << percentile(volumes, 0) << " "
+         << percentile(volumes, 0.5) << " " << percentile(volumes, 1) << " " << truth << "\n";
+  }
+}
+
+void writePlots(const Options& options) {
+  const std::string script = options.out_dir + "/plots.gp";
+  std::ofstream gp(script);
+  gp << "set terminal pngcairo size 800,500 noenhanced\n"
+     << "set output '" << options.out_dir << "/fig12_volumes.png'\n"
+     << "set title 'Estimated volume (min / median / max, 0.6-1.2 m) beside ground truth'\n"
+     << "set ylabel 'volume [m^3]'\nset xrange [0.5:4.5]\nset yrange [0:*]\nset grid ytics\n"
+     << "set key top left\n"
+     << "plot '" << options.out_dir << "/fig12_volumes.dat' using 1:4:3:5:xtic(2) "
+     << "with yerrorbars lw 2 pt 7 title 'estimated (median, min-max)', "
+     << "'' using ($1+0.15):6 with points pt 5 ps 1.5 title 'ground truth'\n"
+     << "set output '" << options.out_dir << "/error_vs_range.png'\n"
+     << "set title 'Median relative error against range (all rendered objects)'\n"
+     << "set xlabel 'range camera - object [m]'\nset ylabel 'relative error [%]'\n"
+     << "set xrange [0.6:1.5]\nset yrange [0:*]\nset xtics 0.1\n"
+     << "plot '" << options.out_dir << "/error_vs_range.dat' using 1:2 with linespoints lw 2 "
+     << "pt 7 title 'dimensions', '' using 1:3 with linespoints lw 2 pt 5 title 'volume'\n";
+  gp.close();
+  const std::string command = "gnuplot '" + script + "' 2>&1";
+  if (std::system(command.c_str()) != 0) {
+    std::fprintf(stderr, "benchmark_accuracy: gnuplot failed; data files are in %s\n",
+                 options.out_dir.c_str());
+  } else {
+    std::printf("\nPlots: %s/fig12_volumes.png, %s/error_vs_range.png\n", options.out_dir.c_str(),
+                options.out_dir.c_str());
+  }
+}
+
+void runOsd(const Options& options) {
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(options.osd_dir)) {
+    if (entry.path().extension() == ".pcd" && entry.path().filename().string().rfind("learn", 0) == 0)
+      files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  if (files.empty()) return;
+  std::printf("\nReal OSD learn scenes (%s), up estimated from the scene\n",
+              options.osd_dir.c_str());
+  std::printf("  %-12s %9s %9s %9s %9s %14s  %s\n", "scene", "table P", "table R", "object P",
+              "object R", "objects whole", "types");
+  int labelled = 0, whole = 0;
+  for (const fs::path& file : files) {
+    pcl::PointCloud<pcl::PointXYZRGBL> cloud;
+    if (pcl::io::loadPCDFile(file.string(), cloud) < 0) continue;
+    pcl::PointCloud<pcl::PointXYZ> xyz;
+    pcl::copyPointCloud(cloud, xyz);
+    PipelineParams params;
+    params.auto_up = true;
+    Pipeline pipeline(params);
+    const SceneResult result = pipeline.process(xyz);
+    const LabelledScore score = scoreLabelledScene(cloud, result);
+    labelled += score.labelled_objects;
+    whole += score.objects_found_whole;
+    std::string types;
+    for (const std::string& t : score.types) types += (types.empty() ? "" : ",") + t;
+    std::printf("  %-12s %8.1f%% %8.1f%% %8.1f%% %8.1f%% %8d / %-3d  %s\n",
+                file.stem().string().c_str(), 100 * score.table_precision,
+                100 * score.table_recall, 100 * score.object_precision,
+                100 * score.object_recall, score.objects_found_whole, score.labelled_objects,
+                types.c_str());
+  }
+  std::printf("  labelled objects (>= 500 points) found as one object each: %d / %d = %.1f %%\n",
+              whole, labelled, 100.0 * whole / std::max(labelled, 1));
+}
+
+Options parse(int argc, char** argv) {
+  Options options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "benchmark_accuracy: %s needs a value\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (arg == "--paper-scenes") options.paper_scenes = std::stoi(value());
+    else if (arg == "--random-scenes") options.random_scenes = std::stoi(value());
+    else if (arg == "--seed") options.seed = static_cast<uint32_t>(std::stoul(value()));
+    else if (arg == "--up") options.auto_up = value() == "auto";
+    else if (arg == "--osd") options.osd_dir = value();
+    else if (arg == "--out") options.out_dir = value();
+    else if (arg == "--no-plots") options.plots = false;
+    else if (arg == "--verbose") options.verbose = true;
+    else {
+      std::fprintf(stderr,
+                   "usage: benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S]"
+                   " [--up auto] [--osd DIR] [--out DIR] [--no-plots]\n");
+      std::exit(2);
+    }
+  }
+  return options;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options options = parse(argc, argv);
+  fs::create_directories(options.out_dir);
+  std::mt19937 rng(options.seed);
+  Tally tally;
+  const int total = options.paper_scenes + options.random_scenes;
+  for (int i = 0; i < total; ++i) {
+    const SceneSpec spec =
+        i < options.paper_scenes ? paperObjectsScene(rng) : randomScene(rng, RandomSceneOptions());
+    runScene(spec, options, tally);
+    progress(i + 1, total);
+  }
+  std::printf("Rendered Kinect-v1 scenes: %d with the paper's four objects, %d random"
+              " (1-4 objects), seed %u, up %s: %zu object instances\n",
+              options.paper_scenes, options.random_scenes, options.seed,
+              options.auto_up ? "estimated from the scene" : "given (as from tf2)",
+              tally.samples.size());
+  printPaperTable(tally);
+  printDetection(tally);
+  printBreakdowns(tally, options);
+  writeFig12(tally, options);
+  if (options.plots) writePlots(options);
+  if (!options.osd_dir.empty()) runOsd(options);
+  return 0;
+}

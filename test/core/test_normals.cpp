@@ -1,0 +1,150 @@
+#include "tabletop_shapes/core/normals.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <limits>
+#include <random>
+
+#include "synthetic.h"
+
+namespace tabletop_shapes {
+namespace {
+
+float angleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0f, 1.0f)) * 180.0f /
+         static_cast<float>(kPi);
+}
+
+// A 0.2 m square plane 1 m in front of the camera, tilted 40 deg, with Gaussian noise, sampled
+// at 5 mm (the voxel grid's spacing).
+CloudPtr noisyPlane(const Eigen::Vector3f& normal, float sigma, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, sigma);
+  const Eigen::Vector3f centre(0.1f, 0.05f, 1.0f);
+  const Eigen::Vector3f u = normal.unitOrthogonal(), v = normal.cross(u);
+  auto cloud = std::make_shared<Cloud>();
+  for (float a = -0.1f; a <= 0.1f; a += 0.005f) {
+    for (float b = -0.1f; b <= 0.1f; b += 0.005f) {
+      const Eigen::Vector3f p =
+          centre + a * u + b * v + Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+      cloud->push_back(Point(p.x(), p.y(), p.z()));
+    }
+  }
+  return cloud;
+}
+
+TEST(NormalsMLS, NoisyPlaneNormalsWithinFewDegreesAndFacingTheCamera) {
+  // Normal facing away from the camera (+z forward): the estimate must be flipped to -normal.
+  const Eigen::Vector3f away = Eigen::Vector3f(0.0f, std::sin(0.7f), std::cos(0.7f));
+  const CloudPtr plane = noisyPlane(away, 0.0015f, 3);
+  NormalCloud out;
+  estimateNormalsMLS(plane, NormalParams{}, out);
+  ASSERT_GT(out.size(), plane->size() * 95 / 100);  // only a few border points may go
+  EXPECT_EQ(out.width, out.size());
+  EXPECT_TRUE(out.is_dense);
+  float worst = 0.0f, sum = 0.0f;
+  int interior = 0;
+  for (const auto& p : out.points) {
+    const Eigen::Vector3f n = p.getNormalVector3fMap();
+    EXPECT_NEAR(n.norm(), 1.0f, 1e-4f);
+    EXPECT_GT(n.dot(-p.getVector3fMap()), 0.0f) << "normal not towards the camera";
+    const float error = angleDeg(n, -away);
+    sum += error;
+    // Border points have a one-sided neighbourhood: judge the worst case on the interior.
+    if ((p.getVector3fMap() - Eigen::Vector3f(0.1f, 0.05f, 1.0f)).norm() < 0.08f) {
+      worst = std::max(worst, error);
+      ++interior;
+    }
+  }
+  ASSERT_GT(interior, 500);
+  EXPECT_LT(sum / out.size(), 3.0f);
+  EXPECT_LT(worst, 8.0f);
+}
+
+TEST(NormalsMLS, SmoothsTheNoiseAlongTheNormal) {
+  const Eigen::Vector3f normal(0.0f, 0.0f, -1.0f);
+  const CloudPtr plane = noisyPlane(normal, 0.002f, 5);
+  NormalCloud out;
+  estimateNormalsMLS(plane, NormalParams{}, out);
+  ASSERT_FALSE(out.empty());
+  // Plane z = 1: the raw points deviate by sigma = 2 mm, the MLS projections much less.
+  double raw = 0.0, smoothed = 0.0;
+  for (const auto& p : plane->points) raw += (p.z - 1.0) * (p.z - 1.0);
+  for (const auto& p : out.points) smoothed += (p.z - 1.0) * (p.z - 1.0);
+  EXPECT_NEAR(std::sqrt(raw / plane->size()), 0.002, 0.0003);
+  EXPECT_LT(std::sqrt(smoothed / out.size()), 0.0008);
+}
+
+TEST(NormalsMLS, BoxFacesInCameraFrameAndTiming) {
+  // A 0.175 x 0.12 x 0.10 box 1 m from a camera at the origin, 5 mm spacing, 1.5 mm noise.
+  synthetic::Sampler sampler;
+  sampler.spacing = 0.005f;
+  sampler.noise_sigma = 0.0015f;
+  const Eigen::Vector3f size(0.175f, 0.12f, 0.10f);
+  CloudPtr box = synthetic::box(size, {0.0f, 0.0f}, 0.0f, sampler);
+  // Camera at sampler.camera: moving it to the origin keeps the table frame's axes.
+  synthetic::transformCloud(Eigen::Isometry3f(Eigen::Translation3f(-sampler.camera)), *box);
+  NormalCloud out;
+  const auto start = std::chrono::steady_clock::now();
+  estimateNormalsMLS(box, NormalParams{}, out);
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  std::printf("MLS normals: %zu points in %.2f ms\n", box->size(), ms);
+  ASSERT_GT(out.size(), box->size() * 95 / 100);
+  EXPECT_LT(ms, 100.0);  // a few ms in an optimised build; generous for loaded machines
+
+  // Away from the edges (> 2.5 cm, beyond the MLS radius) a top-face normal is +z and a
+  // front-face normal is -y.
+  const Eigen::Vector3f c = -sampler.camera;  // box bottom centre in the shifted frame
+  int top = 0, front = 0;
+  for (const auto& p : out.points) {
+    const Eigen::Vector3f q = p.getVector3fMap() - c;
+    const Eigen::Vector3f n = p.getNormalVector3fMap();
+    const bool inner_x = std::abs(q.x()) < size.x() / 2 - 0.025f;
+    if (inner_x && std::abs(q.y()) < size.y() / 2 - 0.025f && q.z() > size.z() - 0.005f) {
+      EXPECT_LT(angleDeg(n, Eigen::Vector3f::UnitZ()), 5.0f);
+      ++top;
+    }
+    if (inner_x && q.y() < -size.y() / 2 + 0.005f && std::abs(q.z() - size.z() / 2) < 0.025f) {
+      EXPECT_LT(angleDeg(n, -Eigen::Vector3f::UnitY()), 5.0f);
+      ++front;
+    }
+  }
+  EXPECT_GT(top, 50);
+  EXPECT_GT(front, 20);
+}
+
+TEST(NormalsMLS, BadInputGivesAnEmptyDenseCloud) {
+  NormalCloud out;
+  estimateNormalsMLS(nullptr, NormalParams{}, out);
+  EXPECT_TRUE(out.empty());
+  estimateNormalsMLS(std::make_shared<Cloud>(), NormalParams{}, out);
+  EXPECT_TRUE(out.empty());
+
+  auto nan_cloud = std::make_shared<Cloud>(20, 10);  // organised, all NaN
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (auto& p : nan_cloud->points) p = Point(nan, nan, nan);
+  nan_cloud->is_dense = false;
+  estimateNormalsMLS(nan_cloud, NormalParams{}, out);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(out.height, 1u);
+
+  // Two isolated points: no neighbourhood, no normal.
+  auto sparse = std::make_shared<Cloud>();
+  sparse->push_back(Point(0.0f, 0.0f, 1.0f));
+  sparse->push_back(Point(0.5f, 0.0f, 1.0f));
+  estimateNormalsMLS(sparse, NormalParams{}, out);
+  EXPECT_TRUE(out.empty());
+
+  // Some NaN among valid points: the valid ones get normals.
+  CloudPtr mixed = noisyPlane(Eigen::Vector3f(0.0f, 0.0f, -1.0f), 0.0f, 1);
+  mixed->push_back(Point(nan, nan, nan));
+  mixed->is_dense = false;
+  estimateNormalsMLS(mixed, NormalParams{}, out);
+  EXPECT_GE(out.size(), mixed->size() * 95 / 100);
+  for (const auto& p : out.points) EXPECT_TRUE(std::isfinite(p.x) && std::isfinite(p.normal_z));
+}
+
+}  // namespace
+}  // namespace tabletop_shapes

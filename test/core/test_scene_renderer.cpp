@@ -1,0 +1,405 @@
+// Known-answer tests of the rendered-scene generator: exact geometry when noiseless, the
+// documented noise statistics, determinism, valid random layouts, and the written files.
+#include "tabletop_shapes/sim/scene_renderer.h"
+
+#include <Eigen/Eigenvalues>
+#include <gtest/gtest.h>
+#include <pcl/io/pcd_io.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+namespace tabletop_shapes {
+namespace sim {
+namespace {
+
+// Distance from p to the surface of the box |x_i| <= half_i (local frame).
+float boxSurfaceDistance(const Eigen::Vector3f& p, const Eigen::Vector3f& half) {
+  const Eigen::Vector3f outside = (p.cwiseAbs() - half).cwiseMax(0.0f);
+  if (outside.squaredNorm() > 0) return outside.norm();
+  return (half - p.cwiseAbs()).minCoeff();
+}
+
+// Distance from p (local frame: bottom centre, z up) to a truncated cone's side or caps.
+float roundSurfaceDistance(const Eigen::Vector3f& p, float r_bottom, float r_top, float height) {
+  const float slope = (r_top - r_bottom) / height;
+  const float radial = p.head<2>().norm();
+  float best = std::numeric_limits<float>::infinity();
+  if (p.z() >= 0 && p.z() <= height) {
+    best = std::abs(radial - (r_bottom + slope * p.z())) / std::sqrt(1 + slope * slope);
+  }
+  if (radial <= r_top) best = std::min(best, std::abs(p.z() - height));
+  if (radial <= r_bottom) best = std::min(best, std::abs(p.z()));
+  return best;
+}
+
+// Distance of a world point to the surface with the given label.
+float surfaceDistance(const SceneSpec& spec, int label, const Eigen::Vector3f& world) {
+  const TableSpec& table = spec.table;
+  if (label == kFloorLabel) return std::abs(world.z());
+  if (label == kTableLabel) {
+    return boxSurfaceDistance(world - Eigen::Vector3f(0, 0, table.height - table.thickness / 2),
+                              Eigen::Vector3f(table.length, table.width, table.thickness) / 2);
+  }
+  const ObjectSpec& object = spec.objects.at(label);
+  const Eigen::Vector3f bottom(object.position_on_table.x(), object.position_on_table.y(),
+                               table.height);
+  const Eigen::Vector3f local =
+      Eigen::AngleAxisf(-object.yaw, Eigen::Vector3f::UnitZ()) * (world - bottom);
+  if (object.type == ShapeType::Cube) {
+    return boxSurfaceDistance(local - Eigen::Vector3f(0, 0, object.box_size.z() / 2),
+                              object.box_size / 2);
+  }
+  const float r_top = object.type == ShapeType::Cone ? object.radius_top : object.radius_bottom;
+  return roundSurfaceDistance(local, object.radius_bottom, r_top, object.height);
+}
+
+SceneSpec singleObjectScene(const ObjectSpec& object) {
+  SceneSpec spec;
+  spec.objects.push_back(object);
+  spec.objects[0].position_on_table = {0.05f, -0.03f};
+  spec.objects[0].yaw = degToRad(30.0f);
+  spec.placement = {1.0f, 40.0f, 70.0f};
+  spec.noise = NoiseModel::noiseless();
+  return spec;
+}
+
+// Every valid pixel lies on the surface it is labelled with, to 0.1 mm, for each solid type.
+TEST(SceneRenderer, NoiselessPointsLieOnTheirSurfaces) {
+  for (const ObjectSpec& object : {teapotBox(), steelMug(), beaker()}) {
+    const SceneSpec spec = singleObjectScene(object);
+    const RenderedScene scene = renderScene(spec);
+    ASSERT_EQ(scene.cloud->width, 640u);
+    ASSERT_EQ(scene.cloud->height, 480u);
+    std::map<int, int> counts;
+    float worst = 0.0f;
+    for (size_t i = 0; i < scene.cloud->size(); ++i) {
+      const auto& p = scene.cloud->points[i];
+      const int label = scene.labels[i];
+      if (!std::isfinite(p.z)) {
+        EXPECT_EQ(label, kNoReturn);
+        continue;
+      }
+      ASSERT_NE(label, kNoReturn);
+      ++counts[label];
+      const Eigen::Vector3f world = scene.world_from_camera * p.getVector3fMap();
+      worst = std::max(worst, surfaceDistance(spec, label, world));
+    }
+    EXPECT_LT(worst, 1e-4f) << object.name;
+    EXPECT_GT(counts[0], 3000) << object.name;  // the object at 1 m
+    EXPECT_GT(counts[kTableLabel], 100000) << object.name;
+    EXPECT_EQ(scene.objects[0].visible_pixels, counts[0]);
+  }
+}
+
+// The principal ray passes through the look-at point: known depth on the table, a box top and
+// a cylinder top (camera looking straight down).
+TEST(SceneRenderer, PrincipalRayHitsKnownDepth) {
+  SceneSpec spec;
+  spec.camera.cx = 320.0f;
+  spec.camera.cy = 240.0f;
+  spec.noise = NoiseModel::noiseless();
+  const size_t centre = 240 * 640 + 320;
+
+  spec.placement = {1.1f, 35.0f, 120.0f};  // no objects: looks at the table centre
+  RenderedScene scene = renderScene(spec);
+  EXPECT_EQ(scene.labels[centre], kTableLabel);
+  EXPECT_NEAR(scene.cloud->points[centre].z, 1.1f, 1e-5f);
+  EXPECT_NEAR(scene.cloud->points[centre].x, 0.0f, 1e-6f);
+  EXPECT_NEAR(scene.cloud->points[centre].y, 0.0f, 1e-6f);
+
+  spec.placement = {1.0f, 90.0f, 0.0f};
+  spec.objects = {teapotBox()};  // height 0.10
+  scene = renderScene(spec);
+  EXPECT_EQ(scene.labels[centre], 0);
+  EXPECT_NEAR(scene.cloud->points[centre].z, 0.90f, 1e-5f);
+
+  spec.objects = {steelMug()};  // height 0.16
+  spec.objects[0].position_on_table = {-0.2f, 0.1f};
+  scene = renderScene(spec);
+  EXPECT_EQ(scene.labels[centre], 0);
+  EXPECT_NEAR(scene.cloud->points[centre].z, 0.84f, 1e-5f);
+  // Looking straight down, the ground truth centre lies on the principal ray at mid-height.
+  EXPECT_NEAR(scene.objects[0].center.x(), 0.0f, 1e-5f);
+  EXPECT_NEAR(scene.objects[0].center.y(), 0.0f, 1e-5f);
+  EXPECT_NEAR(scene.objects[0].center.z(), 0.92f, 1e-5f);
+  EXPECT_NEAR(scene.objects[0].axis().z(), -1.0f, 1e-5f);  // up = towards the camera
+}
+
+// The ground-truth plane is the one the rendered (noisy) table top points lie on, and the
+// ground-truth objects stand on it.
+TEST(SceneRenderer, GroundTruthPlaneMatchesTablePoints) {
+  const RenderedScene scene = renderScene(paperScene({1.2f, 50.0f, 100.0f}));
+  // Least-squares plane through the table-top points (the top face: within 2 cm of the plane,
+  // which leaves out the 3 cm edge faces), mean-centred.
+  std::vector<Eigen::Vector3f> points;
+  for (size_t i = 0; i < scene.cloud->size(); ++i) {
+    const Eigen::Vector3f p = scene.cloud->points[i].getVector3fMap();
+    if (scene.labels[i] == kTableLabel && std::abs(scene.table_plane.signedDistance(p)) < 0.02f) {
+      points.push_back(p);
+    }
+  }
+  ASSERT_GT(points.size(), 50000u);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p.cast<double>();
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) {
+    const Eigen::Vector3d q = p.cast<double>() - mean;
+    scatter += q * q.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+  Eigen::Vector3d normal = solver.eigenvectors().col(0);  // smallest eigenvalue
+  if (normal.dot(scene.table_plane.normal.cast<double>()) < 0) normal = -normal;
+  const double angle_deg =
+      std::acos(std::min(1.0, normal.dot(scene.table_plane.normal.cast<double>()))) * 180 / kPi;
+  EXPECT_LT(angle_deg, 0.2);
+  EXPECT_NEAR(scene.table_plane.signedDistance(mean.cast<float>()), 0.0f, 0.001f);
+  EXPECT_NEAR(scene.table_plane.normal.norm(), 1.0f, 1e-6f);
+  EXPECT_LT((scene.up - scene.table_plane.normal).norm(), 1e-6f);
+  EXPECT_LT(scene.table_plane.normal.y(), -0.5f);  // up is image-up for a level camera
+  for (const GroundTruthObject& object : scene.objects) {
+    EXPECT_NEAR(scene.table_plane.signedDistance(object.center), object.height / 2, 1e-5f);
+    EXPECT_LT((object.axis() - scene.up).norm(), 1e-5f);
+  }
+}
+
+// Looking straight down at the table (a plane at constant depth z), the axial noise has the
+// documented sigma(z), and quantised depths are exact disparity steps.
+TEST(SceneRenderer, NoiseStatisticsMatchTheModel) {
+  for (float range : {0.8f, 1.2f, 1.6f}) {
+    SceneSpec spec;
+    spec.placement = {range, 90.0f, 0.0f};
+    NoiseModel axial_only = NoiseModel::noiseless();
+    axial_only.enabled = true;
+    axial_only.lateral_noise = axial_only.flying_pixels = axial_only.disparity_quantisation =
+        axial_only.grazing_dropout = axial_only.random_dropout = false;
+    spec.noise = axial_only;
+    const RenderedScene scene = renderScene(spec);
+    double sum = 0, sum_sq = 0;
+    int n = 0;
+    for (size_t i = 0; i < scene.cloud->size(); ++i) {
+      if (scene.labels[i] != kTableLabel) continue;
+      const double error = scene.cloud->points[i].z - range;
+      sum += error;
+      sum_sq += error * error;
+      ++n;
+    }
+    ASSERT_GT(n, 100000);
+    const double mean = sum / n, sigma = std::sqrt(sum_sq / n - mean * mean);
+    const double expected = 0.0012 + 0.0019 * (range - 0.4) * (range - 0.4);
+    EXPECT_NEAR(sigma / expected, 1.0, 0.2) << "range " << range;
+    EXPECT_NEAR(mean, 0.0, 0.1 * expected) << "range " << range;
+
+    NoiseModel quantised_only = axial_only;
+    quantised_only.axial_noise = false;
+    quantised_only.disparity_quantisation = true;
+    spec.noise = quantised_only;
+    const RenderedScene quantised = renderScene(spec);
+    const double focal_baseline = spec.camera.fx * 0.075;
+    const double step = range * range * 0.125 / focal_baseline;  // depth step at this range
+    for (size_t i = 0; i < quantised.cloud->size(); i += 97) {
+      if (quantised.labels[i] != kTableLabel) continue;
+      const double z = quantised.cloud->points[i].z;
+      EXPECT_LE(std::abs(z - range), step / 2 + 1e-5);
+      const double disparity_steps = focal_baseline / z / 0.125;
+      EXPECT_NEAR(disparity_steps, std::round(disparity_steps), 1e-3);
+    }
+  }
+}
+
+// Full noise: dropout near its probability, no return at grazing incidence, flying pixels
+// between foreground and background at depth edges only.
+TEST(SceneRenderer, FullNoiseKeepsMostObjectPixels) {
+  const SceneSpec spec = paperScene({1.0f, 40.0f, 90.0f}, NoiseModel{}, 7);
+  SceneSpec clean_spec = spec;
+  clean_spec.noise = NoiseModel::noiseless();
+  const RenderedScene noisy = renderScene(spec);
+  const RenderedScene clean = renderScene(clean_spec);
+  ASSERT_EQ(noisy.objects.size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_GT(clean.objects[k].visible_pixels, 3000) << clean.objects[k].name;
+    // Dropout 1.5 % plus grazing silhouettes: at least 85 % of the pixels survive.
+    EXPECT_GT(noisy.objects[k].visible_pixels, 0.85 * clean.objects[k].visible_pixels)
+        << noisy.objects[k].name;
+    EXPECT_LT(noisy.objects[k].visible_pixels, 0.995 * clean.objects[k].visible_pixels);
+  }
+  // Points of the table far from any edge stay within 5 sigma of the clean depth.
+  int table_pixels = 0, lost = 0, far_off = 0;
+  for (size_t i = 0; i < clean.cloud->size(); ++i) {
+    if (clean.labels[i] != kTableLabel) continue;
+    const int u = static_cast<int>(i % 640), v = static_cast<int>(i / 640);
+    bool interior = u > 2 && v > 2 && u < 637 && v < 477;
+    for (int dv = -2; dv <= 2 && interior; ++dv) {
+      for (int du = -2; du <= 2 && interior; ++du) {
+        interior = clean.labels[i + dv * 640 + du] == kTableLabel;
+      }
+    }
+    if (!interior) continue;
+    ++table_pixels;
+    const float z_clean = clean.cloud->points[i].z, z = noisy.cloud->points[i].z;
+    if (!std::isfinite(z)) {
+      ++lost;
+    } else {
+      const float quantisation_step = z_clean * z_clean * 0.125f / (575.8f * 0.075f);
+      far_off += std::abs(z - z_clean) > 5 * spec.noise.axialSigma(z_clean) + quantisation_step;
+    }
+  }
+  ASSERT_GT(table_pixels, 100000);
+  EXPECT_NEAR(static_cast<double>(lost) / table_pixels, 0.015, 0.004);
+  EXPECT_LT(far_off, table_pixels / 1000);
+}
+
+TEST(SceneRenderer, FlyingPixelsLieBetweenForegroundAndBackground) {
+  SceneSpec spec = singleObjectScene(teapotBox());
+  NoiseModel flying_only = NoiseModel::noiseless();
+  flying_only.enabled = true;
+  flying_only.lateral_noise = flying_only.axial_noise = flying_only.disparity_quantisation =
+      flying_only.grazing_dropout = flying_only.random_dropout = false;
+  flying_only.flying_pixel_fraction = 0.5f;
+  spec.noise = flying_only;
+  const RenderedScene noisy = renderScene(spec);
+  spec.noise = NoiseModel::noiseless();
+  const RenderedScene clean = renderScene(spec);
+  int moved = 0, edge_pixels = 0;
+  for (int v = 1; v < 479; ++v) {
+    for (int u = 1; u < 639; ++u) {
+      const size_t i = static_cast<size_t>(v) * 640 + u;
+      const float z = clean.cloud->points[i].z;
+      if (!std::isfinite(z)) continue;
+      float lo = z, hi = z;
+      for (size_t j : {i - 1, i + 1, i - 640, i + 640}) {
+        const float zn = clean.cloud->points[j].z;
+        if (std::isfinite(zn) && std::abs(zn - z) > std::abs(hi - lo)) {
+          lo = std::min(z, zn);
+          hi = std::max(z, zn);
+        }
+      }
+      const bool edge = hi - lo > flying_only.flying_min_jump;
+      edge_pixels += edge;
+      const float zn = noisy.cloud->points[i].z;
+      if (zn != z) {
+        ++moved;
+        ASSERT_TRUE(edge) << u << "," << v;
+        EXPECT_GE(zn, lo - 1e-6f);
+        EXPECT_LE(zn, hi + 1e-6f);
+      }
+    }
+  }
+  ASSERT_GT(edge_pixels, 300);
+  EXPECT_NEAR(static_cast<double>(moved) / edge_pixels, 0.5, 0.08);
+}
+
+bool sameCloud(const RenderedScene& a, const RenderedScene& b) {
+  for (size_t i = 0; i < a.cloud->size(); ++i) {
+    const auto &p = a.cloud->points[i], &q = b.cloud->points[i];
+    const bool same = (std::isnan(p.z) && std::isnan(q.z)) ||
+                      (p.x == q.x && p.y == q.y && p.z == q.z && p.rgba == q.rgba);
+    if (!same) return false;
+  }
+  return true;
+}
+
+TEST(SceneRenderer, DeterministicWithASeed) {
+  std::mt19937 rng_a(42), rng_b(42);
+  const SceneSpec a = randomScene(rng_a), b = randomScene(rng_b);
+  ASSERT_EQ(a.objects.size(), b.objects.size());
+  EXPECT_EQ(a.seed, b.seed);
+  for (size_t k = 0; k < a.objects.size(); ++k) {
+    EXPECT_EQ(a.objects[k].position_on_table, b.objects[k].position_on_table);
+    EXPECT_EQ(a.objects[k].yaw, b.objects[k].yaw);
+  }
+  const RenderedScene first = renderScene(a), second = renderScene(b);
+  EXPECT_TRUE(sameCloud(first, second));
+  SceneSpec other_seed = a;
+  other_seed.seed = a.seed + 1;
+  EXPECT_FALSE(sameCloud(first, renderScene(other_seed)));
+}
+
+// Random layouts: 1-4 objects, inside the table by the margin, not overlapping, in view.
+TEST(SceneRenderer, RandomScenesAreValid) {
+  std::mt19937 rng(3);
+  RandomSceneOptions options;
+  std::map<int, int> counts_seen;
+  std::map<ShapeType, int> types_seen;
+  for (int n = 0; n < 300; ++n) {
+    const SceneSpec spec = randomScene(rng, options);
+    const int count = static_cast<int>(spec.objects.size());
+    ASSERT_GE(count, 1);
+    ASSERT_LE(count, 4);
+    ++counts_seen[count];
+    EXPECT_GE(spec.placement.distance, 0.6f);
+    EXPECT_LE(spec.placement.distance, 1.5f);
+    EXPECT_GE(spec.placement.tilt_deg, 20.0f);
+    EXPECT_LE(spec.placement.tilt_deg, 60.0f);
+    const Eigen::Isometry3f camera_from_world = cameraPose(spec).inverse();
+    for (int i = 0; i < count; ++i) {
+      const ObjectSpec& a = spec.objects[i];
+      ++types_seen[a.type];
+      const Eigen::Vector2f extent = a.footprintHalfExtents();
+      EXPECT_LE(std::abs(a.position_on_table.x()) + extent.x(), 0.6f - 0.12f + 1e-5f);
+      EXPECT_LE(std::abs(a.position_on_table.y()) + extent.y(), 0.4f - 0.12f + 1e-5f);
+      const Eigen::Vector3f centre = camera_from_world * Eigen::Vector3f(
+          a.position_on_table.x(), a.position_on_table.y(), 0.75f + a.objectHeight() / 2);
+      EXPECT_GT(centre.z(), 0.45f);
+      EXPECT_LT(std::abs(575.8f * centre.x() / centre.z()), 320.0f);
+      EXPECT_LT(std::abs(575.8f * centre.y() / centre.z()), 240.0f);
+      for (int j = 0; j < i; ++j) {
+        const ObjectSpec& b = spec.objects[j];
+        EXPECT_GE((a.position_on_table - b.position_on_table).norm(),
+                  a.footprintRadius() + b.footprintRadius() + options.min_gap - 1e-5f);
+      }
+    }
+  }
+  EXPECT_EQ(counts_seen.size(), 4u);
+  EXPECT_EQ(types_seen.size(), 3u);
+}
+
+TEST(SceneRenderer, WritesPcdAndJson) {
+  const RenderedScene scene = renderScene(paperScene());
+  const std::string json = groundTruthJson(scene);
+  for (const char* key : {"\"cube\"", "\"cylinder\"", "\"cone\"", "\"plane\"", "\"up\"",
+                          "\"sorted_dimensions\": [0.175, 0.12, 0.1]", "\"radius_top\": 0.0375"}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  int depth = 0;
+  for (char c : json) depth += (c == '{' || c == '[') - (c == '}' || c == ']');
+  EXPECT_EQ(depth, 0);
+
+  const std::string path = ::testing::TempDir() + "tabletop_shapes_scene.pcd";
+  ASSERT_TRUE(writePcd(scene, path));
+  pcl::PointCloud<pcl::PointXYZRGB> loaded;
+  ASSERT_EQ(pcl::io::loadPCDFile(path, loaded), 0);
+  std::remove(path.c_str());
+  EXPECT_EQ(loaded.width, 640u);
+  EXPECT_EQ(loaded.height, 480u);
+  RenderedScene reloaded;
+  reloaded.cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>(loaded);
+  EXPECT_TRUE(sameCloud(scene, reloaded));
+}
+
+TEST(SceneRenderer, DegenerateInputDoesNotCrash) {
+  SceneSpec spec;
+  spec.camera.width = 0;
+  EXPECT_EQ(renderScene(spec).cloud->size(), 0u);
+  spec = SceneSpec();
+  ObjectSpec flat = steelMug();
+  flat.height = 0.0f;  // skipped
+  ObjectSpec empty_box = teapotBox();
+  empty_box.box_size.setZero();
+  spec.objects = {flat, empty_box};
+  const RenderedScene scene = renderScene(spec);
+  EXPECT_EQ(scene.objects.size(), 2u);
+  EXPECT_EQ(scene.objects[0].visible_pixels, 0);
+  EXPECT_EQ(scene.objects[1].visible_pixels, 0);
+  RandomSceneOptions impossible;
+  impossible.min_objects = impossible.max_objects = 4;
+  impossible.table.length = impossible.table.width = 0.3f;  // nothing fits inside the margin
+  std::mt19937 rng(1);
+  EXPECT_LE(randomScene(rng, impossible).objects.size(), 4u);
+}
+
+}  // namespace
+}  // namespace sim
+}  // namespace tabletop_shapes

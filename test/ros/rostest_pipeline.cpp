@@ -1,0 +1,355 @@
+// The rostest node of the pipeline tests; each .test file picks its cases with --gtest_filter.
+// The chain runs from launch/pipeline.launch in namespace /tabletop_shapes; scenes come from
+// bags written at test time by write_scene_bag (test/ros/scene_bag.py), with their ground
+// truth on /ground_truth (tabletop_shapes/Objects, same stamp as the cloud).
+#include "rostest_common.h"
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <Eigen/Core>
+#include <dynamic_reconfigure/Reconfigure.h>
+#include <rosgraph_msgs/Log.h>
+#include <tabletop_shapes/Objects.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+namespace {
+
+using tabletop_shapes::Objects;
+using tabletop_shapes::ObjectsConstPtr;
+using tabletop_shapes_test::waitFor;
+
+const char* const kStages[] = {"preprocess", "table_segmentation", "clustering",
+                               "shape_estimation"};
+
+double privateParam(const std::string& name, double fallback) {
+  return ros::NodeHandle("~").param(name, fallback);
+}
+
+size_t objectCount(const Objects& objects) {
+  return objects.cubes.size() + objects.cylinders.size() + objects.cones.size() +
+         objects.unfitted.size();
+}
+
+struct Solid {
+  std::string type;
+  Eigen::Vector3d center;
+  std::array<double, 3> size;  // cube: edges sorted descending; round: r_bottom, r_top, height
+};
+
+std::vector<Solid> solids(const Objects& objects) {
+  std::vector<Solid> out;
+  auto center = [](const geometry_msgs::Pose& pose) {
+    return Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  };
+  for (const auto& cube : objects.cubes) {
+    std::array<double, 3> edges{cube.dimensions.x, cube.dimensions.y, cube.dimensions.z};
+    std::sort(edges.begin(), edges.end(), std::greater<double>());
+    out.push_back({"cube", center(cube.pose), edges});
+  }
+  for (const auto& c : objects.cylinders) {
+    out.push_back({"cylinder", center(c.pose), {c.radius, c.radius, c.height}});
+  }
+  for (const auto& c : objects.cones) {
+    out.push_back({"cone", center(c.pose), {c.radius_bottom, c.radius_top, c.height}});
+  }
+  return out;
+}
+
+// "cube at (x, y, z); ..." for failure messages.
+std::string describe(const Objects& objects) {
+  std::ostringstream text;
+  text.precision(3);
+  for (const Solid& solid : solids(objects)) {
+    text << solid.type << " at (" << solid.center.transpose() << "); ";
+  }
+  for (const auto& unfitted : objects.unfitted) {
+    text << "unfitted at (" << unfitted.centroid.x << " " << unfitted.centroid.y << " "
+         << unfitted.centroid.z << "): " << unfitted.reason << "; ";
+  }
+  return text.str();
+}
+
+// Collects what the pipeline publishes.
+class PipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ros::NodeHandle node;
+    objects_sub_ = node.subscribe("/tabletop_shapes/objects", 100, &PipelineTest::onObjects, this);
+    truth_sub_ = node.subscribe("/ground_truth", 100, &PipelineTest::onTruth, this);
+    markers_sub_ = node.subscribe("/tabletop_shapes/markers", 100, &PipelineTest::onMarkers, this);
+    diagnostics_sub_ = node.subscribe("/diagnostics", 100, &PipelineTest::onDiagnostics, this);
+    rosout_sub_ = node.subscribe("/rosout", 1000, &PipelineTest::onLog, this);
+  }
+
+  void onObjects(const ObjectsConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    objects_.push_back(msg);
+    objects_wall_times_.push_back(ros::WallTime::now());
+  }
+  void onTruth(const ObjectsConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    truth_[msg->header.stamp] = msg;
+  }
+  void onMarkers(const visualization_msgs::MarkerArrayConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    markers_.push_back(msg);
+  }
+  void onDiagnostics(const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& status : msg->status) {
+      for (const char* stage : kStages) {
+        if (status.name == std::string("/tabletop_shapes/") + stage + ": processing") {
+          for (const auto& kv : status.values) diagnostics_[stage][kv.key] = kv.value;
+        }
+      }
+    }
+  }
+  void onLog(const rosgraph_msgs::LogConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (msg->level == rosgraph_msgs::Log::WARN &&
+        msg->msg.find("up_frame") != std::string::npos && first_tf_warning_.isZero()) {
+      first_tf_warning_ = ros::WallTime::now();
+      tf_warning_text_ = msg->msg;
+    }
+  }
+
+  size_t objectsReceived() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return objects_.size();
+  }
+  ObjectsConstPtr objectsAt(size_t index) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return objects_.at(index);
+  }
+  // A diagnostic value of a stage as a number (NAN while not reported yet).
+  double diagnostic(const std::string& stage, const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto s = diagnostics_.find(stage);
+    if (s == diagnostics_.end()) return NAN;
+    const auto v = s->second.find(key);
+    return v == s->second.end() ? NAN : std::atof(v->second.c_str());
+  }
+
+  bool setMinClusterSize(int size) {
+    dynamic_reconfigure::Reconfigure call;
+    dynamic_reconfigure::IntParameter parameter;
+    parameter.name = "min_size";
+    parameter.value = size;
+    call.request.config.ints.push_back(parameter);
+    const std::string service = "/tabletop_shapes/clustering/set_parameters";
+    return ros::service::waitForService(service, 10000) && ros::service::call(service, call);
+  }
+
+  std::mutex mutex_;
+  std::vector<ObjectsConstPtr> objects_;
+  std::vector<ros::WallTime> objects_wall_times_;
+  std::map<ros::Time, ObjectsConstPtr> truth_;
+  std::vector<visualization_msgs::MarkerArrayConstPtr> markers_;
+  std::map<std::string, std::map<std::string, std::string>> diagnostics_;
+  ros::WallTime first_tf_warning_;
+  std::string tf_warning_text_;
+  ros::Subscriber objects_sub_, truth_sub_, markers_sub_, diagnostics_sub_, rosout_sub_;
+};
+
+// Rendered scenes: every object found with the right type and dimensions, frame after frame.
+TEST_F(PipelineTest, BagReplayObjectsMatchGroundTruth) {
+  const int min_frames = static_cast<int>(privateParam("min_frames", 3));
+  const double edge_tolerance = privateParam("edge_tolerance", 0.10);     // relative
+  const double radius_tolerance = privateParam("radius_tolerance", 0.005);  // m
+  const double height_tolerance = privateParam("height_tolerance", 0.015);  // m
+  const double timeout = privateParam("timeout", 40.0);
+
+  int evaluated = 0;
+  size_t next = 0;
+  waitFor([&]() -> bool {
+    while (next < objectsReceived() && evaluated < min_frames) {
+      const ObjectsConstPtr result = objectsAt(next++);
+      ObjectsConstPtr truth;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        const auto found = truth_.find(result->header.stamp);
+        if (found != truth_.end()) truth = found->second;
+      }
+      if (!truth) {
+        ADD_FAILURE() << "no ground truth with the stamp of objects " << result->header.stamp;
+        continue;
+      }
+      ++evaluated;
+      SCOPED_TRACE("frame stamped " + std::to_string(result->header.stamp.toSec()));
+      EXPECT_TRUE(result->table_found);
+      EXPECT_EQ(result->header.frame_id, truth->header.frame_id);
+      const std::vector<Solid> expected = solids(*truth), found = solids(*result);
+      EXPECT_EQ(objectCount(*result), expected.size()) << "found: " << describe(*result);
+      for (const Solid& want : expected) {
+        const auto nearest = std::min_element(found.begin(), found.end(),
+            [&](const Solid& a, const Solid& b) {
+              return (a.center - want.center).norm() < (b.center - want.center).norm();
+            });
+        if (nearest == found.end()) {
+          ADD_FAILURE() << "no " << want.type << " found";
+          continue;
+        }
+        const Solid& got = *nearest;
+        SCOPED_TRACE(want.type + " at " + std::to_string(want.center.x()) + ", " +
+                     std::to_string(want.center.y()) + ", " + std::to_string(want.center.z()));
+        EXPECT_LT((got.center - want.center).norm(), 0.03) << "centre";
+        EXPECT_EQ(got.type, want.type);
+        std::printf("%s: found %s, size %.4f %.4f %.4f, truth %.4f %.4f %.4f, centre off %.4f m\n",
+                    want.type.c_str(), got.type.c_str(), got.size[0], got.size[1], got.size[2],
+                    want.size[0], want.size[1], want.size[2], (got.center - want.center).norm());
+        if (got.type != want.type) continue;
+        if (want.type == "cube") {
+          for (int i = 0; i < 3; ++i) {
+            EXPECT_NEAR(got.size[i], want.size[i], edge_tolerance * want.size[i]) << "edge " << i;
+          }
+        } else {
+          EXPECT_NEAR(got.size[0], want.size[0], radius_tolerance) << "bottom radius";
+          EXPECT_NEAR(got.size[1], want.size[1], radius_tolerance) << "top radius";
+          EXPECT_NEAR(got.size[2], want.size[2], height_tolerance) << "height";
+        }
+      }
+    }
+    return evaluated >= min_frames;
+  }, timeout);
+  EXPECT_GE(evaluated, min_frames) << "frames evaluated before the timeout";
+}
+
+// Inside one manager every cloud a stage receives is the very object the previous stage
+// published; standalone (expect_zero_copy false) every one was serialised and copied: the
+// positive control that shows the check can tell the two apart.
+TEST_F(PipelineTest, BagReplayCloudsSharedNotCopied) {
+  const bool expect_zero_copy = ros::NodeHandle("~").param("expect_zero_copy", true);
+  const char* key_shared = "input clouds shared (zero-copy)";
+  const char* key_copied = "input clouds copied";
+  const bool reported = waitFor([&] {
+    for (const char* stage : {"table_segmentation", "clustering", "shape_estimation"}) {
+      if (!(diagnostic(stage, key_shared) + diagnostic(stage, key_copied) >= 2)) return false;
+    }
+    return true;
+  }, privateParam("timeout", 40.0));
+  ASSERT_TRUE(reported) << "the stages did not report two input clouds each";
+  for (const char* stage : {"table_segmentation", "clustering", "shape_estimation"}) {
+    SCOPED_TRACE(stage);
+    if (expect_zero_copy) {
+      EXPECT_GE(diagnostic(stage, key_shared), 2);
+      EXPECT_EQ(diagnostic(stage, key_copied), 0);
+    } else {
+      EXPECT_EQ(diagnostic(stage, key_shared), 0);
+      EXPECT_GE(diagnostic(stage, key_copied), 2);
+    }
+  }
+}
+
+// Markers: a solid and a label per object, the table hull as a closed line strip; every
+// stage reports its processing time.
+TEST_F(PipelineTest, BagReplayMarkersAndTimings) {
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, privateParam("timeout", 40.0)));
+  ASSERT_TRUE(waitFor([&] {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !markers_.empty();
+  }, 5.0));
+  const ObjectsConstPtr objects = objectsAt(0);
+  visualization_msgs::MarkerArrayConstPtr markers;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    markers = markers_.front();
+  }
+  size_t solids = 0, labels = 0, strips = 0;
+  for (const auto& m : markers->markers) {
+    if (m.action != visualization_msgs::Marker::ADD) continue;
+    if (m.ns == "solids") {
+      ++solids;
+      EXPECT_GT(m.color.a, 0.1);
+      EXPECT_LT(m.color.a, 1.0) << "translucent";
+    }
+    if (m.ns == "labels") {
+      ++labels;
+      EXPECT_NE(m.text.find(" cm"), std::string::npos) << m.text;
+    }
+    if (m.ns == "table" && m.type == visualization_msgs::Marker::LINE_STRIP) {
+      ++strips;
+      ASSERT_GE(m.points.size(), 4u);
+      EXPECT_EQ(m.points.front().x, m.points.back().x) << "closed outline";
+    }
+  }
+  EXPECT_EQ(solids, objectCount(*objects));
+  EXPECT_EQ(labels, objectCount(*objects));
+  EXPECT_EQ(strips, 1u);
+  ASSERT_TRUE(waitFor([&] {
+    for (const char* stage : kStages) {
+      if (!(diagnostic(stage, "frames") >= 1)) return false;
+    }
+    return true;
+  }, 10.0)) << "every stage reports on /diagnostics";
+  for (const char* stage : kStages) {
+    EXPECT_GT(diagnostic(stage, "last frame [ms]"), 0.0) << stage;
+  }
+}
+
+// A real OSD scene: the expected number of objects comes out of every frame.
+TEST_F(PipelineTest, RealSceneExpectedObjectCount) {
+  const int expected = static_cast<int>(privateParam("expected_objects", -1));
+  ASSERT_GE(expected, 0) << "set ~expected_objects";
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 2; }, privateParam("timeout", 40.0)));
+  for (size_t i = 0; i < 2; ++i) {
+    const ObjectsConstPtr objects = objectsAt(i);
+    EXPECT_TRUE(objects->table_found);
+    EXPECT_EQ(objectCount(*objects), static_cast<size_t>(expected))
+        << describe(*objects);
+  }
+}
+
+// dynamic_reconfigure: a minimum cluster size above every object's size empties `objects`
+// from the next frame on; lowering it brings them back.
+TEST_F(PipelineTest, ReconfigureMinClusterSize) {
+  const double timeout = privateParam("timeout", 40.0);
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, timeout));
+  const size_t before = objectCount(*objectsAt(objectsReceived() - 1));
+  ASSERT_GT(before, 0u) << "the scene must have objects to start with";
+
+  ASSERT_TRUE(setMinClusterSize(1000000));
+  // Frames already past the clustering stage may still arrive: allow one, then all empty.
+  size_t changed_at = objectsReceived();
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= changed_at + 4; }, timeout));
+  for (size_t i = changed_at + 1; i < changed_at + 4; ++i) {
+    EXPECT_EQ(objectCount(*objectsAt(i)), 0u) << "message " << i - changed_at << " after";
+    EXPECT_TRUE(objectsAt(i)->table_found) << "the table is still there";
+  }
+
+  ASSERT_TRUE(setMinClusterSize(100));
+  changed_at = objectsReceived();
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= changed_at + 3; }, timeout));
+  for (size_t i = changed_at + 1; i < changed_at + 3; ++i) {
+    EXPECT_EQ(objectCount(*objectsAt(i)), before) << "message " << i - changed_at << " after";
+  }
+}
+
+// up_frame without a transform: throttled warnings, frames skipped, no output, no crash;
+// once the transform appears (published late by the fixture) the objects come.
+TEST_F(PipelineTest, MissingUpTransformWarnsThenRecovers) {
+  const double timeout = privateParam("timeout", 40.0);
+  ASSERT_TRUE(waitFor([&] { return diagnostic("table_segmentation", "frames skipped") >= 1; },
+                      timeout)) << "frames without a transform are reported as skipped";
+  EXPECT_EQ(objectsReceived(), 0u) << "no output while the transform is missing";
+  ASSERT_TRUE(waitFor([&] {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !first_tf_warning_.isZero();
+  }, 10.0)) << "a warning naming up_frame on /rosout";
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, timeout))
+      << "objects once the transform is there";
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    EXPECT_GT(objects_wall_times_.front(), first_tf_warning_);
+    EXPECT_NE(tf_warning_text_.find("base_link"), std::string::npos) << tf_warning_text_;
+  }
+  EXPECT_EQ(objectCount(*objectsAt(0)), static_cast<size_t>(privateParam("expected_objects", 4)));
+}
+
+}  // namespace
