@@ -29,6 +29,9 @@ constexpr double kRansacConfidence = 0.99;
 constexpr float kObjectTopAreaFraction = 0.25f;
 // Support candidates are within this angle of the dominant plane's normal (cos 4 deg).
 constexpr float kParallelCosine = 0.99756f;
+// Points this far below a candidate, this far inside its hull, mean it is not a surface [m].
+constexpr float kBelowSupportDepth = 0.10f;
+constexpr float kBelowSupportInset = 0.01f;
 // estimateUp: a support plane's normal, oriented towards the camera, points up in the image
 // (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
 // box faces and ceilings do not.
@@ -252,6 +255,26 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
   return candidates;
 }
 
+// A support surface hides what lies just beneath it, inside its hull, from the camera. A
+// horizontal slice through several objects (a box top plus rings of the other objects' walls
+// within the inlier distance: seen on rendered scenes with 600-2000 inliers) has the lower
+// parts of those objects right below it.
+bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableParams& params) {
+  if (candidate.hull_2d.size() < 3) return false;
+  int below = 0;
+  for (const auto& point : cloud.points) {
+    const Eigen::Vector3f p = point.getVector3fMap();
+    const float depth = -candidate.plane.signedDistance(p);
+    if (!(depth > 2 * params.distance_threshold && depth < kBelowSupportDepth)) continue;
+    const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+    if (insideDistance(candidate.hull_2d, q) > kBelowSupportInset &&
+        ++below >= kMinSupportedPoints) {
+      return true;
+    }
+  }
+  return false;
+}
+
 // True when `top` looks like the top face of an object standing on `base`.
 bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams& params) {
   if (top.area >= kObjectTopAreaFraction * base.area) return false;
@@ -277,6 +300,7 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
   for (size_t rank = 0; rank < order.size(); ++rank) {
     const Candidate& candidate = candidates[order[rank]];
     if (candidate.plane.normal.dot(candidates.front().plane.normal) < kParallelCosine) continue;
+    if (hasPointsBelow(cloud, candidate, params)) continue;
     bool object_top = false;
     for (size_t lower = rank + 1; lower < order.size() && !object_top; ++lower) {
       object_top = isObjectTop(candidate, candidates[order[lower]], params);

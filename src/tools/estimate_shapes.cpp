@@ -12,6 +12,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <set>
 #include <iostream>
 #include <sstream>
 
@@ -114,8 +116,51 @@ void loadConfig(const std::string& path, PipelineParams& params) {
   }
 }
 
+// PCL's PCD reader crashes on some malformed files (random bytes: a segfault), so the header is
+// checked first: every line up to DATA must be a known PCD keyword, the sizes must be sane, and
+// a binary body must be as long as the header says.
+void checkPcdHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw UsageError("cannot read PCD file " + path);
+  const std::set<std::string> keywords = {"VERSION", "FIELDS", "SIZE",   "TYPE",  "COUNT",
+                                          "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS"};
+  std::string line, data;
+  long long points = -1, point_size = 0;
+  for (int lines = 0; lines < 64 && std::getline(in, line); ++lines) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "DATA") {
+      words >> data;
+      break;
+    }
+    if (!keywords.count(keyword)) throw UsageError("cannot read PCD file " + path + ": not a PCD header");
+    if (keyword == "POINTS" && !(words >> points)) points = -2;
+    if (keyword == "SIZE") {
+      for (long long size; words >> size;) point_size += size;
+    }
+  }
+  if (data != "ascii" && data != "binary" && data != "binary_compressed") {
+    throw UsageError("cannot read PCD file " + path + ": no DATA ascii|binary|binary_compressed");
+  }
+  if (points < 0 || points > 100000000) {
+    throw UsageError("cannot read PCD file " + path + ": bad POINTS");
+  }
+  const std::streamoff body_start = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff body = in.tellg() - body_start;
+  if (data == "binary" && body < points * point_size) {
+    throw UsageError("cannot read PCD file " + path + ": truncated (binary body too short)");
+  }
+  if (data == "binary_compressed" && points > 0 && body < 8) {
+    throw UsageError("cannot read PCD file " + path + ": truncated (no compressed body)");
+  }
+}
+
 // Any PCD with x y z; rgb and other fields (label, normals) are ignored.
 pcl::PointCloud<pcl::PointXYZ> loadCloud(const std::string& path) {
+  checkPcdHeader(path);
   pcl::PCLPointCloud2 blob;
   if (pcl::io::loadPCDFile(path, blob) < 0) throw UsageError("cannot read PCD file " + path);
   for (const char* field : {"x", "y", "z"}) {

@@ -25,7 +25,7 @@ TEST(ParameterTable, PaperDefaults) {
   PipelineParams params;
   EXPECT_FLOAT_EQ(params.preprocess.max_range, 3.0f);
   EXPECT_FLOAT_EQ(params.table.up_tolerance_deg, 10.0f);
-  EXPECT_FLOAT_EQ(params.table.hull_margin, 0.10f);
+  EXPECT_FLOAT_EQ(params.table.hull_margin, 0.02f);  // the paper's 0.10 eats real objects
   EXPECT_EQ(params.table.outlier_k, 50);
   EXPECT_FLOAT_EQ(params.clustering.tolerance, 0.02f);
   EXPECT_EQ(params.clustering.min_size, 100);

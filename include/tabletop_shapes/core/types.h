@@ -46,7 +46,11 @@ struct TableParams {
   int max_iterations = 500;               // RANSAC iterations per plane
   int min_inliers = 500;                  // a support plane needs at least this many points
   int max_planes = 4;                     // horizontal planes examined (table, floor, shelves)
-  float hull_margin = 0.10f;              // keep objects at least this far inside the hull [m]
+  // Keep object points at least this far inside the table's hull [m]. The paper uses 0.10 m;
+  // on real OSD scenes that removed 32-100 % of the objects standing near an edge, and half of
+  // PCL's mug (radius 0.054 m fitted instead of 0.039 m); 0.02 m keeps them, and the outlier
+  // removal and minimum cluster size still drop table-edge noise.
+  float hull_margin = 0.02f;
   float min_height = 0.008f;              // object points start this far above the plane [m]
   float max_height = 0.5f;                // and end this far above it [m]
   int outlier_k = 50;                     // §2.4 neighbours
