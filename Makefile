@@ -3,19 +3,26 @@
 export PATH := /usr/bin:/bin:$(PATH)
 SHELL := /bin/bash
 MAKEFLAGS += --no-print-directory
+# The build lives in .build/ with build/ a link to it: rosrun ignores every executable below
+# <package>/build/, and the repository root is the package, so a real build/ would hide our
+# tools from `rosrun tabletop_shapes ...` (and from the rostests that use it).
 BUILD_DIR ?= build
+REAL_BUILD_DIR ?= .build
 JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
               -DCATKIN_ENABLE_TESTING=ON
 
-.PHONY: deps build test benchmark-accuracy format clean
+.PHONY: deps build test demo benchmark-accuracy format clean
 
 deps:
 	@scripts/install-deps
 
 # Configures once, then builds incrementally; source $(BUILD_DIR)/devel/setup.bash afterwards.
 build: deps
-	@if [ ! -f $(BUILD_DIR)/CMakeCache.txt ]; then cmake -S . -B $(BUILD_DIR) $(CMAKE_ARGS); fi
+	@if [ "$(BUILD_DIR)" = build ] && [ ! -L build ]; then \
+	  if [ -e build ]; then echo "build/ must be a link to $(REAL_BUILD_DIR)/: make clean first"; exit 1; fi; \
+	  mkdir -p $(REAL_BUILD_DIR) && ln -s $(REAL_BUILD_DIR) build; fi
+	@if [ ! -f $(BUILD_DIR)/CMakeCache.txt ]; then cmake -S . -B $$(realpath $(BUILD_DIR)) $(CMAKE_ARGS); fi
 	cmake --build $(BUILD_DIR) -- -j$(JOBS)
 
 # Builds the tests and runs them all through ctest, which exits non-zero on any failure
@@ -30,8 +37,13 @@ OSD_DIR ?= $(firstword $(wildcard ../shared/data/osd-learn) test/data)
 benchmark-accuracy: build
 	$(BUILD_DIR)/devel/lib/tabletop_shapes/benchmark_accuracy --osd $(OSD_DIR) --out benchmark-output
 
+# The whole chain on a bundled rendered recording of the paper's four objects; prints the
+# objects found beside the true values. RVIZ=1 opens rviz; DEVICE=... uses a live camera.
+demo: build
+	@scripts/demo $(if $(RVIZ),--rviz) $(if $(DEVICE),--device $(DEVICE))
+
 format:
 	clang-format -i $$(git ls-files '*.h' '*.cpp')
 
 clean:
-	rm -rf $(BUILD_DIR)
+	rm -rf build $(REAL_BUILD_DIR)
