@@ -22,7 +22,8 @@ using namespace tabletop_shapes;
 namespace {
 
 const char* kUsage =
-    "usage: estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] CLOUD.pcd";
+    "usage: estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] CLOUD.pcd\n"
+    "       estimate_shapes --parameters   (every parameter, its default and range)";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -224,6 +225,16 @@ std::string toJson(const SceneResult& scene) {
   return json.str();
 }
 
+// Every tunable as a Markdown table (the README's parameter section is this output).
+void printParameterTable() {
+  PipelineParams defaults;
+  std::cout << "| parameter | default | range | meaning |\n|---|---|---|---|\n";
+  forEachParameter(defaults, [](const ParameterInfo& info, double& value) {
+    std::cout << "| `" << info.stage << "." << info.name << "` | " << value << " | "
+              << info.min << " .. " << info.max << " | " << info.description << " |\n";
+  });
+}
+
 int run(int argc, char** argv) {
   PipelineParams params;
   std::string cloud_path;
@@ -239,6 +250,9 @@ int run(int argc, char** argv) {
       if (!params.auto_up) params.table.up = parseVector(up);
     } else if (arg == "--config") {
       loadConfig(value(), params);
+    } else if (arg == "--parameters") {
+      printParameterTable();
+      return 0;
     } else if (arg == "-h" || arg == "--help") {
       std::cout << kUsage << "\n";
       return 0;

@@ -140,5 +140,15 @@ class Processed(unittest.TestCase):
         self.assertEqual(doc["objects"], [])
 
 
+class Documentation(unittest.TestCase):
+    def test_readme_parameter_table_is_current(self):
+        code, out, err = run("--parameters")
+        self.assertEqual(code, 0, err)
+        self.assertIn("| `table.hull_margin` |", out)
+        readme = open(os.path.join(DATA, "..", "..", "README.md")).read()
+        self.assertIn(out.strip(), readme,
+                      "README's parameter table differs from `estimate_shapes --parameters`")
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
