@@ -23,7 +23,7 @@ constexpr int kRefineIterations = 3;
 constexpr int kMaxSampleTries = 20;
 // Hypotheses are scored on a random subset of this many points (the chosen planes are then
 // refined on all of them): the ranking needs fractions and mean angles, not every point.
-constexpr int kScoringPoints = 1000;  // draws for a second / third point sharing the normal
+constexpr int kScoringPoints = 1000;        // draws for a second / third point sharing the normal
 constexpr unsigned kRandomSeed = 20120715;  // fixed: the same cloud gives the same box
 
 struct Candidate {
@@ -76,7 +76,7 @@ bool fitPlane(const NormalCloud& cloud, const std::vector<int>& indices, Eigen::
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   if (solver.info() != Eigen::Success) return false;
-  const Eigen::Vector3d eigenvalues = solver.eigenvalues();  // ascending
+  const Eigen::Vector3d eigenvalues = solver.eigenvalues();                    // ascending
   if (eigenvalues(1) <= 1e-9 * std::max(eigenvalues(2), 1e-12)) return false;  // collinear
   Eigen::Vector3f fitted = solver.eigenvectors().col(0).cast<float>().normalized();
   if (fitted.dot(normal) < 0.0f) fitted = -fitted;
@@ -121,8 +121,8 @@ bool consistentPlane(const Eigen::Vector3f& normal, const std::vector<Face>& cho
   if (!isHorizontal(normal, up) && !isVertical(normal, up)) return false;
   for (const Face& face : chosen) {
     const float cosine = std::abs(normal.dot(face.normal));
-    if (cosine > std::cos(params.min_plane_angle)) return false;      // the same face again
-    if (cosine > std::sin(kRightAngleTolerance)) return false;        // not perpendicular
+    if (cosine > std::cos(params.min_plane_angle)) return false;  // the same face again
+    if (cosine > std::sin(kRightAngleTolerance)) return false;    // not perpendicular
   }
   return true;
 }
@@ -222,8 +222,7 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
   // Sampling is guided: the 2nd and 3rd points are drawn among points whose normal agrees with
   // the 1st one's, so the three usually lie on one face even when it holds few of the points.
   const float cos_threshold = std::cos(params.angle_threshold);
-  const int min_support =
-      std::max(3, static_cast<int>(std::ceil(params.min_support_fraction * n)));
+  const int min_support = std::max(3, static_cast<int>(std::ceil(params.min_support_fraction * n)));
   std::mt19937 rng(kRandomSeed);
   std::uniform_int_distribution<int> pick(0, n - 1);
   std::vector<int> all(n);
@@ -235,13 +234,13 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
     }
     scoring.resize(kScoringPoints);
   }
-  const int min_scoring_support = std::max(
-      3, static_cast<int>(std::ceil(params.min_support_fraction * scoring.size())));
+  const int min_scoring_support =
+      std::max(3, static_cast<int>(std::ceil(params.min_support_fraction * scoring.size())));
   auto drawAgreeing = [&](const Eigen::Vector3f& normal, int a, int b) {
     for (int attempt = 0; attempt < kMaxSampleTries; ++attempt) {
       const int j = pick(rng);
-      if (j != a && j != b && std::abs(normal.dot(object[j].getNormalVector3fMap())) >
-                                  cos_threshold) {
+      if (j != a && j != b &&
+          std::abs(normal.dot(object[j].getNormalVector3fMap())) > cos_threshold) {
         return j;
       }
     }
@@ -308,9 +307,7 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
   if (!top && sides.size() == 1) {
     return failure(fit, "only one vertical face seen: the depth of the box is not observable");
   }
-  auto horizontal = [&up](const Eigen::Vector3f& v) {
-    return (v - v.dot(up) * up).normalized();
-  };
+  auto horizontal = [&up](const Eigen::Vector3f& v) { return (v - v.dot(up) * up).normalized(); };
   Eigen::Vector3f x_axis;
   if (sides.empty()) {
     // Seen from above: the yaw from the top face's outline (the paper fails here, pn = 1).

@@ -105,7 +105,7 @@ struct TrimmedSolution {
   Eigen::VectorXd residuals;  // unweighted, all points
   Eigen::VectorXd inliers;    // 1 = used, 0 = trimmed
   int inlier_count = 0;
-  double rmse = 0.0;          // over the inliers
+  double rmse = 0.0;  // over the inliers
 };
 
 // Least squares that ignores gross outliers (a mug's handle, flying pixels at the silhouette):
@@ -126,20 +126,18 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
     if (round == kTrimRounds) break;
     std::vector<double> magnitudes(n);
     for (int i = 0; i < n; ++i) magnitudes[i] = std::abs(solution.residuals[i]);
-    const double threshold = std::max(kTrimSigmas * 1.4826 * quantile(magnitudes, 0.5),
-                                      kTrimFloor);
+    const double threshold = std::max(kTrimSigmas * 1.4826 * quantile(magnitudes, 0.5), kTrimFloor);
     const Eigen::VectorXd inliers =
         (solution.residuals.array().abs() <= threshold).template cast<double>();
     if (inliers.sum() < kMinSidePoints || inliers == solution.inliers) break;
     solution.inliers = inliers;
   }
   solution.inlier_count = static_cast<int>(solution.inliers.sum());
-  solution.rmse = solution.inlier_count > 0
-                      ? std::sqrt((solution.residuals.array() * solution.inliers.array())
-                                      .square()
-                                      .sum() /
-                                  solution.inlier_count)
-                      : 0.0;
+  solution.rmse =
+      solution.inlier_count > 0
+          ? std::sqrt((solution.residuals.array() * solution.inliers.array()).square().sum() /
+                      solution.inlier_count)
+          : 0.0;
   return solution;
 }
 
@@ -234,9 +232,8 @@ Circle geometricCircle(const std::vector<Vec2d>& points, const Circle& initial,
   const Circle start = initial.ok ? initial : algebraicCircle(points);
   if (!start.ok || points.size() < 3) return Circle{};
   const Eigen::VectorXd x = levenbergMarquardt(
-      CircleResiduals{points},
-      Eigen::Vector3d(start.center.x(), start.center.y(), start.radius), points.size(),
-      std::max(0, max_iterations));
+      CircleResiduals{points}, Eigen::Vector3d(start.center.x(), start.center.y(), start.radius),
+      points.size(), std::max(0, max_iterations));
   Eigen::VectorXd residuals(points.size());
   CircleResiduals{points}(x, residuals, nullptr);
   Circle circle;
@@ -264,7 +261,7 @@ struct RoundObjectPoints {
   std::vector<Vec2d> side_xy;       // side wall, projected on the table
   std::vector<double> side_height;  // their height above the table
   double height = 0.0;
-  bool top_seen = false;            // height from the top disc (else from the side wall)
+  bool top_seen = false;  // height from the top disc (else from the side wall)
 };
 
 RoundObjectPoints splitObject(const NormalCloud& object, const Plane& table,
@@ -378,8 +375,7 @@ struct ConeSolution {
   double slope_stderr = std::numeric_limits<double>::infinity();
 };
 
-ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder,
-                       int max_iterations) {
+ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder, int max_iterations) {
   const ConeResiduals residual_model{split.side_xy, split.side_height};
   const int n = static_cast<int>(split.side_xy.size());
   const TrimmedSolution trimmed = trimmedLeastSquares(
@@ -434,8 +430,7 @@ ShapeFit cylinderFromSplit(const RoundObjectPoints& split, const CylinderParams&
   fit.points = trimmed.inlier_count;
   fit.rmse = circle.rmse;
   fit.orientation = axisUp(split.frame);
-  fit.center = split.frame
-                   .toCloud(Vec3d(circle.center.x(), circle.center.y(), split.height / 2))
+  fit.center = split.frame.toCloud(Vec3d(circle.center.x(), circle.center.y(), split.height / 2))
                    .cast<float>();
   if (!radiusInBounds(circle.radius, params)) {
     fit.reason = formatRadius("radius", circle.radius, params);
@@ -489,8 +484,7 @@ Circle refineCircleGeometric(const std::vector<Eigen::Vector2f>& points, const C
   return geometricCircle(toDouble(points), initial, max_iterations);
 }
 
-ShapeFit fitCylinder(const NormalCloud& object, const Plane& table,
-                     const CylinderParams& params) {
+ShapeFit fitCylinder(const NormalCloud& object, const Plane& table, const CylinderParams& params) {
   const RoundObjectPoints split = splitObject(object, table, params);
   if (!split.ok) return failed(ShapeType::Cylinder, split.reason);
   Circle circle;

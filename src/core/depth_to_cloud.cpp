@@ -81,9 +81,8 @@ void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
   });
 }
 
-void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
-                  const uint8_t* rgb, int rgb_width, int rgb_height,
-                  pcl::PointCloud<pcl::PointXYZRGB>& cloud) {
+void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics, const uint8_t* rgb,
+                  int rgb_width, int rgb_height, pcl::PointCloud<pcl::PointXYZRGB>& cloud) {
   resizeOrganised(intrinsics, cloud);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const bool same_size = rgb_width == intrinsics.width && rgb_height == intrinsics.height;
@@ -100,8 +99,8 @@ void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
     int rgb_index = index;
     if (!same_size) {
       const int u = index % intrinsics.width, v = index / intrinsics.width;
-      rgb_index = (v * rgb_height / intrinsics.height) * rgb_width +
-                  u * rgb_width / intrinsics.width;
+      rgb_index =
+          (v * rgb_height / intrinsics.height) * rgb_width + u * rgb_width / intrinsics.width;
     }
     p.r = rgb[3 * rgb_index];
     p.g = rgb[3 * rgb_index + 1];

@@ -13,9 +13,9 @@
 namespace tabletop_shapes {
 namespace {
 
-constexpr int kAxisBits = 21;                                 // bits per voxel coordinate
+constexpr int kAxisBits = 21;                                   // bits per voxel coordinate
 constexpr int64_t kAxisOffset = int64_t{1} << (kAxisBits - 1);  // makes coordinates >= 0
-constexpr uint64_t kEmptyKey = ~uint64_t{0};                  // never a 63-bit key
+constexpr uint64_t kEmptyKey = ~uint64_t{0};                    // never a 63-bit key
 
 inline uint64_t hashKey(uint64_t key) {  // splitmix64 finaliser: spreads neighbouring voxels
   key ^= key >> 31;

@@ -33,12 +33,11 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
 
   const Prediction prediction = predictShape(normals, params_.predictor);
   auto fitAs = [&](ShapeType type) {
-    return type == ShapeType::Cube
-               ? fitCube(normals, table, params_.cube)
-               : fitRoundObject(normals, table, params_.cylinder, params_.cone);
+    return type == ShapeType::Cube ? fitCube(normals, table, params_.cube)
+                                   : fitRoundObject(normals, table, params_.cylinder, params_.cone);
   };
-  const ShapeType first = prediction.guess == ShapeType::Cube ? ShapeType::Cube
-                                                              : ShapeType::Cylinder;
+  const ShapeType first =
+      prediction.guess == ShapeType::Cube ? ShapeType::Cube : ShapeType::Cylinder;
   const ShapeType second = first == ShapeType::Cube ? ShapeType::Cylinder : ShapeType::Cube;
 
   ShapeFit best = fitAs(first);

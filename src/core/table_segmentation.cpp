@@ -39,9 +39,9 @@ constexpr float kMinImageUpCosine = 0.1f;
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
-  Eigen::Vector3f axis;    // accepted normals satisfy normal . axis >= min_cos
+  Eigen::Vector3f axis;  // accepted normals satisfy normal . axis >= min_cos
   float min_cos;
-  bool orient_to_origin;   // orient normals towards the camera (else along axis)
+  bool orient_to_origin;  // orient normals towards the camera (else along axis)
 };
 
 struct Candidate {
@@ -49,14 +49,14 @@ struct Candidate {
   std::vector<int> inliers;
   std::vector<Eigen::Vector3f> hull;  // 3-D, on the plane, counter-clockwise about the normal
   std::vector<Eigen::Vector2f> hull_2d;
-  Eigen::Vector3f u, v;               // in-plane basis of hull_2d
+  Eigen::Vector3f u, v;  // in-plane basis of hull_2d
   float area = 0.0f;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
 };
 
 Plane orient(Plane plane, const NormalConstraint& constraint) {
-  const bool flip = constraint.orient_to_origin ? plane.d < 0.0f
-                                                : plane.normal.dot(constraint.axis) < 0.0f;
+  const bool flip =
+      constraint.orient_to_origin ? plane.d < 0.0f : plane.normal.dot(constraint.axis) < 0.0f;
   if (flip) {
     plane.normal = -plane.normal;
     plane.d = -plane.d;
@@ -123,8 +123,7 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
       best = hypothesis;
       const double w = static_cast<double>(count) / static_cast<double>(scoring.size());
       const double all_inliers = 1.0 - w * w * w;
-      needed = all_inliers <= 0.0 ? 0.0
-                                  : std::log(1.0 - kRansacConfidence) / std::log(all_inliers);
+      needed = all_inliers <= 0.0 ? 0.0 : std::log(1.0 - kRansacConfidence) / std::log(all_inliers);
     }
   }
   if (best_count < 3) return false;
@@ -339,8 +338,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint);
   if (candidates.empty()) {
     result.reason = "no plane within " + std::to_string(params_.up_tolerance_deg) +
-                    " deg of up with at least " + std::to_string(params_.min_inliers) +
-                    " points";
+                    " deg of up with at least " + std::to_string(params_.min_inliers) + " points";
     return result;
   }
   const Candidate& table = candidates[selectSupport(*cloud, candidates, params_)];
@@ -358,8 +356,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   above->header = cloud->header;
   above->reserve(objects.size());
   for (int i : objects) above->push_back((*cloud)[i]);
-  removeStatisticalOutliers(above, params_.outlier_k, params_.outlier_alpha,
-                            *result.object_points);
+  removeStatisticalOutliers(above, params_.outlier_k, params_.outlier_alpha, *result.object_points);
   return result;
 }
 
@@ -407,8 +404,8 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
     normal_matrix << scatter(i, i), scatter(i, j), scatter(i, j), scatter(j, j);
     const double det = normal_matrix.determinant();
     if (!(std::abs(det) > 1e-12 * trace * trace)) continue;  // degenerate in this direction
-    const Eigen::Vector2d ab = normal_matrix.inverse() * -Eigen::Vector2d(scatter(i, k),
-                                                                          scatter(j, k));
+    const Eigen::Vector2d ab =
+        normal_matrix.inverse() * -Eigen::Vector2d(scatter(i, k), scatter(j, k));
     Eigen::Vector3d n;
     n[k] = 1.0;
     n[i] = ab.x();

@@ -78,10 +78,9 @@ class ClusteringNodelet : public nodelet::Nodelet {
 
   void publishColored(const LabeledCloud& labeled) {
     // A few well separated colours, repeated.
-    static const uint8_t kPalette[][3] = {{230, 25, 75},  {60, 180, 75},   {255, 225, 25},
-                                          {0, 130, 200},  {245, 130, 48},  {145, 30, 180},
-                                          {70, 240, 240}, {240, 50, 230},  {210, 245, 60},
-                                          {250, 190, 212}};
+    static const uint8_t kPalette[][3] = {
+        {230, 25, 75},  {60, 180, 75},  {255, 225, 25}, {0, 130, 200},  {245, 130, 48},
+        {145, 30, 180}, {70, 240, 240}, {240, 50, 230}, {210, 245, 60}, {250, 190, 212}};
     constexpr size_t kColors = sizeof(kPalette) / sizeof(kPalette[0]);
     auto colored = boost::make_shared<ColoredCloud>();
     colored->header = labeled.header;

@@ -53,8 +53,8 @@ std_msgs::ColorRGBA color(float r, float g, float b, float a) {
   return c;
 }
 
-visualization_msgs::Marker marker(const std_msgs::Header& header, const std::string& ns,
-                                  int id, int type) {
+visualization_msgs::Marker marker(const std_msgs::Header& header, const std::string& ns, int id,
+                                  int type) {
   visualization_msgs::Marker m;
   m.header = header;
   m.ns = ns;
@@ -66,8 +66,7 @@ visualization_msgs::Marker marker(const std_msgs::Header& header, const std::str
   return m;
 }
 
-visualization_msgs::Marker deletion(const std_msgs::Header& header, const std::string& ns,
-                                    int id) {
+visualization_msgs::Marker deletion(const std_msgs::Header& header, const std::string& ns, int id) {
   visualization_msgs::Marker m = marker(header, ns, id, visualization_msgs::Marker::CUBE);
   m.action = visualization_msgs::Marker::DELETE;
   return m;
@@ -121,14 +120,14 @@ Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
 
 Plane planeFromMsg(const Table& table) {
   Plane plane;
-  plane.normal = Eigen::Vector3f(table.coefficients[0], table.coefficients[1],
-                                 table.coefficients[2]);
+  plane.normal =
+      Eigen::Vector3f(table.coefficients[0], table.coefficients[1], table.coefficients[2]);
   plane.d = static_cast<float>(table.coefficients[3]);
   return plane;
 }
 
-void transformObjects(const Eigen::Isometry3d& target_from_source,
-                      const std::string& target_frame, Objects& objects) {
+void transformObjects(const Eigen::Isometry3d& target_from_source, const std::string& target_frame,
+                      Objects& objects) {
   auto moveHeaderAndPose = [&](std_msgs::Header& header, geometry_msgs::Pose& pose) {
     header.frame_id = target_frame;
     pose = toPoseMsg(target_from_source * fromPoseMsg(pose));
@@ -144,7 +143,8 @@ void transformObjects(const Eigen::Isometry3d& target_from_source,
   table.header.frame_id = target_frame;
   if (!tableFound(table)) return;
   // n'.p' + d' = 0 with n' = R n and p' = R p + t: d' = d - n'.t
-  const Eigen::Vector3d normal = target_from_source.linear() *
+  const Eigen::Vector3d normal =
+      target_from_source.linear() *
       Eigen::Vector3d(table.coefficients[0], table.coefficients[1], table.coefficients[2]);
   const double d = table.coefficients[3] - normal.dot(target_from_source.translation());
   table.coefficients = {normal.x(), normal.y(), normal.z(), d};

@@ -50,8 +50,7 @@ class OpenNIRuntime {
   static bool acquire(std::string* error) {
     std::lock_guard<std::mutex> lock(mutex());
     if (users() == 0 && openni::OpenNI::initialize() != openni::STATUS_OK) {
-      *error = std::string("OpenNI2 initialisation failed: ") +
-               openni::OpenNI::getExtendedError();
+      *error = std::string("OpenNI2 initialisation failed: ") + openni::OpenNI::getExtendedError();
       return false;
     }
     ++users();
@@ -118,8 +117,7 @@ std::string recordingProblem(const std::string& path) {
     file.seekg(static_cast<std::streamoff>(offset));
     file.read(reinterpret_cast<char*>(header), sizeof(header));
     if (!file || header[0] != 0x0052494E || header[3] < kRecordHeaderSize) {
-      return "recording " + path + " is damaged: no valid record at byte " +
-             std::to_string(offset);
+      return "recording " + path + " is damaged: no valid record at byte " + std::to_string(offset);
     }
     if (header[1] == 11) return "";  // END
     offset += static_cast<uint64_t>(header[3]) + header[4];
@@ -289,7 +287,8 @@ void OpenNI2DriverNodelet::onInit() {
     NODELET_ERROR_STREAM(error << "; the camera driver stays idle");
     return;
   }
-  NODELET_INFO_STREAM("OpenNI2 driver: device_id '" << device_id_ << "' ("
+  NODELET_INFO_STREAM("OpenNI2 driver: device_id '"
+                      << device_id_ << "' ("
                       << (device_id_.empty() ? "the first device" : "as given")
                       << "); streams start when someone subscribes");
   worker_ = std::thread([this] { run(); });
@@ -346,8 +345,9 @@ bool OpenNI2DriverNodelet::openDevice(std::string* problem) {
     openni::OpenNI::enumerateDevices(&devices);
     if (device_id_.empty()) {
       if (devices.getSize() == 0) {
-        *problem = "no OpenNI2 device is connected (Xtion / PrimeSense via PS1080; a Kinect v1 "
-                   "needs the FreenectDriver plugin, see launch/camera.launch)";
+        *problem =
+            "no OpenNI2 device is connected (Xtion / PrimeSense via PS1080; a Kinect v1 "
+            "needs the FreenectDriver plugin, see launch/camera.launch)";
         return false;
       }
       uri = devices[0].getUri();
@@ -383,8 +383,7 @@ bool OpenNI2DriverNodelet::openDevice(std::string* problem) {
   if (device_.open(uri.c_str()) != openni::STATUS_OK) {
     const std::string detail = openni::OpenNI::getExtendedError();
     *problem = "cannot open device '" + device_id_ + "'" +
-               (uri != device_id_ ? " (" + uri + ")" : "") +
-               (detail.empty() ? "" : ": " + detail);
+               (uri != device_id_ ? " (" + uri + ")" : "") + (detail.empty() ? "" : ": " + detail);
     return false;
   }
   device_open_ = true;
@@ -397,8 +396,8 @@ bool OpenNI2DriverNodelet::openDevice(std::string* problem) {
     playback->setSpeed(-1.0f);
   }
   const openni::DeviceInfo& info = device_.getDeviceInfo();
-  NODELET_INFO_STREAM("OpenNI2 camera: opened " << info.getVendor() << " " << info.getName()
-                      << " (" << info.getUri() << ")");
+  NODELET_INFO_STREAM("OpenNI2 camera: opened " << info.getVendor() << " " << info.getName() << " ("
+                                                << info.getUri() << ")");
   if (!last_problem_.empty()) NODELET_INFO("OpenNI2 camera: the device is back");
   last_problem_.clear();
   return true;
@@ -417,12 +416,13 @@ bool OpenNI2DriverNodelet::createStream(Stream& stream, openni::SensorType type,
       depth ? openni::PIXEL_FORMAT_DEPTH_1_MM : openni::PIXEL_FORMAT_RGB888;
   openni::VideoMode current = stream.video.getVideoMode();
   const std::optional<ModeSize> size = modeSize(mode);
-  const bool change = current.getPixelFormat() != wanted_format ||
-                      (size && (current.getResolutionX() != size->width ||
-                                current.getResolutionY() != size->height ||
-                                current.getFps() != size->fps));
+  const bool change =
+      current.getPixelFormat() != wanted_format ||
+      (size && (current.getResolutionX() != size->width ||
+                current.getResolutionY() != size->height || current.getFps() != size->fps));
   if (change && !is_recording_) {  // recordings have their one mode
-    const openni::Array<openni::VideoMode>& modes = stream.video.getSensorInfo().getSupportedVideoModes();
+    const openni::Array<openni::VideoMode>& modes =
+        stream.video.getSensorInfo().getSupportedVideoModes();
     bool found = false;
     for (int i = 0; i < modes.getSize() && !found; ++i) {
       const openni::VideoMode& m = modes[i];
@@ -433,24 +433,24 @@ bool OpenNI2DriverNodelet::createStream(Stream& stream, openni::SensorType type,
           m.getResolutionY() == height && m.getFps() == fps) {
         found = true;
         if (stream.video.setVideoMode(m) != openni::STATUS_OK) {
-          NODELET_WARN_STREAM("OpenNI2 camera: the device refused mode " << width << "x" << height
-                              << "@" << fps << "; keeping its own");
+          NODELET_WARN_STREAM("OpenNI2 camera: the device refused mode "
+                              << width << "x" << height << "@" << fps << "; keeping its own");
         }
       }
     }
     if (!found) {
       NODELET_WARN_STREAM("OpenNI2 camera: " << (depth ? "depth" : "colour") << " mode " << mode
-                          << " is not offered by the device; keeping its own");
+                                             << " is not offered by the device; keeping its own");
     }
   }
   current = stream.video.getVideoMode();
-  const bool format_ok =
-      depth ? (current.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM ||
-               current.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM)
-            : current.getPixelFormat() == openni::PIXEL_FORMAT_RGB888;
+  const bool format_ok = depth ? (current.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM ||
+                                  current.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM)
+                               : current.getPixelFormat() == openni::PIXEL_FORMAT_RGB888;
   if (!format_ok) {
-    NODELET_WARN_STREAM("OpenNI2 camera: unsupported " << (depth ? "depth" : "colour")
-                        << " pixel format " << current.getPixelFormat() << "; stream not used");
+    NODELET_WARN_STREAM("OpenNI2 camera: unsupported "
+                        << (depth ? "depth" : "colour") << " pixel format "
+                        << current.getPixelFormat() << "; stream not used");
     stream.video.destroy();
     stream.created = false;
     return false;
@@ -461,13 +461,15 @@ bool OpenNI2DriverNodelet::createStream(Stream& stream, openni::SensorType type,
       current.getResolutionX(), current.getResolutionY(), stream.video.getHorizontalFieldOfView(),
       stream.video.getVerticalFieldOfView(), &default_fov);
   if (default_fov) {
-    NODELET_WARN_STREAM("OpenNI2 camera: the " << (depth ? "depth" : "colour")
+    NODELET_WARN_STREAM("OpenNI2 camera: the "
+                        << (depth ? "depth" : "colour")
                         << " stream reports no field of view; using the Kinect's");
   }
   if (depth) frame_period_us_ = 1000000 / std::max(1, current.getFps());
   NODELET_INFO_STREAM("OpenNI2 camera: " << (depth ? "depth " : "colour ")
-                      << current.getResolutionX() << "x" << current.getResolutionY() << "@"
-                      << current.getFps() << " Hz, fx " << stream.intrinsics.fx);
+                                         << current.getResolutionX() << "x"
+                                         << current.getResolutionY() << "@" << current.getFps()
+                                         << " Hz, fx " << stream.intrinsics.fx);
   return true;
 }
 
@@ -489,8 +491,10 @@ void OpenNI2DriverNodelet::applyDeviceSettings() {
 
 void OpenNI2DriverNodelet::startStreams(bool depth, bool color) {
   std::string problem;
-  if (depth && !depth_.created) createStream(depth_, openni::SENSOR_DEPTH, active_.depth_mode, &problem);
-  if (color && !color_.created) createStream(color_, openni::SENSOR_COLOR, active_.color_mode, &problem);
+  if (depth && !depth_.created)
+    createStream(depth_, openni::SENSOR_DEPTH, active_.depth_mode, &problem);
+  if (color && !color_.created)
+    createStream(color_, openni::SENSOR_COLOR, active_.color_mode, &problem);
   if (!problem.empty()) reportProblem(problem);
   applyDeviceSettings();
   for (Stream* stream : {&depth_, &color_}) {
@@ -555,8 +559,8 @@ ros::Time OpenNI2DriverNodelet::paceRecording(uint64_t device_us) {
     playback_origin_ = playback_started_ ? playback_last_due_ + gap : Clock::now();
     if (playback_origin_ < Clock::now() - std::chrono::seconds(1)) playback_origin_ = Clock::now();
     playback_origin_stamp_ =
-        ros::Time::now() + ros::Duration(std::chrono::duration<double>(
-                               playback_origin_ - Clock::now()).count());
+        ros::Time::now() +
+        ros::Duration(std::chrono::duration<double>(playback_origin_ - Clock::now()).count());
     playback_origin_us_ = device_us;
     playback_started_ = true;
   }
@@ -564,7 +568,8 @@ ros::Time OpenNI2DriverNodelet::paceRecording(uint64_t device_us) {
   sleepUntil(due);
   playback_last_us_ = device_us;
   playback_last_due_ = due;
-  const double seconds = playback_origin_stamp_.toSec() + (device_us - playback_origin_us_) * 1e-6 / speed;
+  const double seconds =
+      playback_origin_stamp_.toSec() + (device_us - playback_origin_us_) * 1e-6 / speed;
   ros::Time stamp;
   stamp.fromNSec(static_cast<uint64_t>(std::llround(seconds * 1e6)) * 1000ull);  // whole us
   return stamp;
@@ -572,8 +577,7 @@ ros::Time OpenNI2DriverNodelet::paceRecording(uint64_t device_us) {
 
 void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
   const uint64_t device_us = frame.getTimestamp();
-  const ros::Time stamp =
-      is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
+  const ros::Time stamp = is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
   if (depth_.frames_seen++ % static_cast<uint64_t>(active_.data_skip + 1) != 0) return;
   const int width = frame.getWidth(), height = frame.getHeight();
   const int pixels = width * height;
@@ -583,8 +587,7 @@ void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
   if (frame.getVideoMode().getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM) {
     for (uint16_t& z : depth_mm_) z = static_cast<uint16_t>((z + 5) / 10);
   }
-  correctDepth(depth_mm_.data(), pixels,
-               DepthCorrection{active_.z_offset_mm, active_.z_scaling});
+  correctDepth(depth_mm_.data(), pixels, DepthCorrection{active_.z_offset_mm, active_.z_scaling});
   depth_us_ = device_us;
   depth_stamp_ = stamp;
 
@@ -596,8 +599,7 @@ void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
   header.stamp = depth_stamp_;
   header.frame_id = registered_ && color_.created ? rgb_frame_id_ : depth_frame_id_;
   if (registered_ && color_.created) {
-    intrinsics = intrinsicsFromFieldOfView(width, height,
-                                           color_.video.getHorizontalFieldOfView(),
+    intrinsics = intrinsicsFromFieldOfView(width, height, color_.video.getHorizontalFieldOfView(),
                                            color_.video.getVerticalFieldOfView());
   } else {
     intrinsics.cx -= active_.depth_ir_offset_x;
@@ -616,15 +618,15 @@ void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
     std::memcpy(image->data.data(), depth_mm_.data(), image->data.size());
     depth_image_pub_.publish(image);
   }
-  if (depth_info_pub_.getNumSubscribers() > 0) depth_info_pub_.publish(cameraInfo(intrinsics, header));
+  if (depth_info_pub_.getNumSubscribers() > 0)
+    depth_info_pub_.publish(cameraInfo(intrinsics, header));
   depth_pending_ = true;
   publishCloud();
 }
 
 void OpenNI2DriverNodelet::handleColor(const openni::VideoFrameRef& frame) {
   const uint64_t device_us = frame.getTimestamp();
-  const ros::Time stamp =
-      is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
+  const ros::Time stamp = is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
   if (color_.frames_seen++ % static_cast<uint64_t>(active_.data_skip + 1) != 0) return;
   const int width = frame.getWidth(), height = frame.getHeight();
   const size_t bytes = static_cast<size_t>(width) * height * 3;
@@ -666,8 +668,9 @@ void OpenNI2DriverNodelet::publishCloud() {
     const int64_t dt = static_cast<int64_t>(depth_us_) - static_cast<int64_t>(rgb_us_);
     if (!rgb_valid_ || std::abs(dt) > frame_period_us_ * 6 / 10) return;
     if (!registered_ && !warned_unregistered_) {
-      NODELET_WARN("OpenNI2 camera: depth is not registered to colour; cloud colours are "
-                   "approximate");
+      NODELET_WARN(
+          "OpenNI2 camera: depth is not registered to colour; cloud colours are "
+          "approximate");
       warned_unregistered_ = true;
     }
   }
@@ -706,8 +709,7 @@ void OpenNI2DriverNodelet::run() {
         config_restart = config_.depth_mode != active_.depth_mode ||
                          config_.color_mode != active_.color_mode ||
                          config_.depth_registration != active_.depth_registration ||
-                         config_.color_depth_synchronization !=
-                             active_.color_depth_synchronization;
+                         config_.color_depth_synchronization != active_.color_depth_synchronization;
         active_ = config_;
         config_changed_ = false;
       }

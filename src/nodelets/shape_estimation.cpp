@@ -71,9 +71,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     clusters_subscriber_.subscribe(node, "clusters", queue_size);
     synchronizer_ = std::make_unique<message_filters::TimeSynchronizer<Table, LabeledCloud>>(
         table_subscriber_, clusters_subscriber_, 2 * queue_size);
-    synchronizer_->registerCallback(
-        boost::bind(&ShapeEstimationNodelet::onFrame, this, boost::placeholders::_1,
-                    boost::placeholders::_2));
+    synchronizer_->registerCallback(boost::bind(&ShapeEstimationNodelet::onFrame, this,
+                                                boost::placeholders::_1, boost::placeholders::_2));
   }
 
   void onFrame(const TableConstPtr& table, const boost::shared_ptr<const LabeledCloud>& clusters) {
@@ -105,8 +104,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
             Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
         bridge::transformObjects(target_from_source, output_frame_, objects);
       } catch (const tf2::TransformException& error) {
-        const std::string reason = "no transform to output_frame '" + output_frame_ +
-                                   "' from '" + objects.header.frame_id + "': " + error.what();
+        const std::string reason = "no transform to output_frame '" + output_frame_ + "' from '" +
+                                   objects.header.frame_id + "': " + error.what();
         NODELET_WARN_THROTTLE(2.0, "skipping frame: %s", reason.c_str());
         monitor_->frameSkipped(reason);
         return;

@@ -72,8 +72,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     objects_publisher_ = node.advertise<Cloud>("objects_cloud", 5);
     inliers_publisher_ = node.advertise<Cloud>("table_inliers", 1);
     const int queue_size = private_node.param("queue_size", 1);
-    subscriber_ = node.subscribe("preprocessed", queue_size, &TableSegmentationNodelet::onCloud,
-                                 this);
+    subscriber_ =
+        node.subscribe("preprocessed", queue_size, &TableSegmentationNodelet::onCloud, this);
   }
 
   // Up in the cloud frame; false (frame skipped) when the transform is missing.
@@ -88,8 +88,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       const geometry_msgs::TransformStamped transform =
           tf_buffer_->lookupTransform(header.frame_id, up_frame_, header.stamp, tf_timeout_);
       const auto& q = transform.transform.rotation;
-      params.up = (Eigen::Quaternionf(q.w, q.x, q.y, q.z).normalized() *
-                   Eigen::Vector3f::UnitZ());
+      params.up = (Eigen::Quaternionf(q.w, q.x, q.y, q.z).normalized() * Eigen::Vector3f::UnitZ());
       return true;
     } catch (const tf2::TransformException& error) {
       const std::string reason = "no transform from up_frame '" + up_frame_ + "' to '" +

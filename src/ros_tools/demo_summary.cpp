@@ -27,9 +27,9 @@ const char* kUsage =
 
 // One object, found or true, in the units printed (metres; cm on output).
 struct Row {
-  std::string type;                 // cube, cylinder, cone
-  std::vector<double> dimensions;   // cube: edges sorted descending; cylinder: r, h; cone: r, R, h
-  double x = 0, y = 0, z = 0;       // centre of the solid, camera frame
+  std::string type;                // cube, cylinder, cone
+  std::vector<double> dimensions;  // cube: edges sorted descending; cylinder: r, h; cone: r, R, h
+  double x = 0, y = 0, z = 0;      // centre of the solid, camera frame
 };
 
 std::string dimensionsText(const Row& row) {
@@ -174,8 +174,8 @@ void printTable(const tabletop_shapes::Objects& last, const std::vector<Row>& tr
   }
   for (size_t t = 0; t < truth.size(); ++t) {
     if (found_truth[t]) continue;
-    std::printf("%-9s %-22s %-22s %-18s %-18s\n", "(missed)", "",
-                dimensionsText(truth[t]).c_str(), "", positionText(truth[t]).c_str());
+    std::printf("%-9s %-22s %-22s %-18s %-18s\n", "(missed)", "", dimensionsText(truth[t]).c_str(),
+                "", positionText(truth[t]).c_str());
   }
   for (const auto& unfitted : last.unfitted) {
     std::printf("unfitted  %u points at %.1f %.1f %.1f cm: %s\n", unfitted.points,
@@ -212,8 +212,8 @@ int main(int argc, char** argv) {
     }
   }
   std::string names;
-  const std::vector<Row> truth = truth_path.empty() ? std::vector<Row>{}
-                                                    : readTruth(truth_path, names);
+  const std::vector<Row> truth =
+      truth_path.empty() ? std::vector<Row>{} : readTruth(truth_path, names);
   if (!truth_path.empty() && truth.empty()) {
     std::fprintf(stderr, "demo_summary: no objects in the ground truth %s\n", truth_path.c_str());
   }
@@ -228,8 +228,7 @@ int main(int argc, char** argv) {
   ros::Subscriber subscriber = node.subscribe<tabletop_shapes::Objects>(
       topic, 10, [&](const tabletop_shapes::ObjectsConstPtr& message) {
         received.push_back(*message);
-        const size_t n = message->cubes.size() + message->cylinders.size() +
-                         message->cones.size();
+        const size_t n = message->cubes.size() + message->cylinders.size() + message->cones.size();
         std::printf("  frame %zu: %s, %zu object(s) (%.1f s)\n", received.size(),
                     message->table_found ? "table" : "no table", n,
                     (ros::WallTime::now() - start).toSec());
@@ -243,16 +242,15 @@ int main(int argc, char** argv) {
     ros::WallDuration(0.02).sleep();
   }
   if (received.empty()) {
-    std::fprintf(stderr, "demo_summary: no message on %s within %.0f s\n", topic.c_str(),
-                 timeout);
+    std::fprintf(stderr, "demo_summary: no message on %s within %.0f s\n", topic.c_str(), timeout);
     return 1;
   }
   const tabletop_shapes::Objects& last = received.back();
-  std::printf("\nFrame %zu: table %s; %zu cube(s), %zu cylinder(s), %zu cone(s), %zu unfitted; "
-              "positions in %s\n",
-              received.size(), last.table_found ? "found" : "NOT found", last.cubes.size(),
-              last.cylinders.size(), last.cones.size(), last.unfitted.size(),
-              last.header.frame_id.c_str());
+  std::printf(
+      "\nFrame %zu: table %s; %zu cube(s), %zu cylinder(s), %zu cone(s), %zu unfitted; "
+      "positions in %s\n",
+      received.size(), last.table_found ? "found" : "NOT found", last.cubes.size(),
+      last.cylinders.size(), last.cones.size(), last.unfitted.size(), last.header.frame_id.c_str());
   if (!truth.empty()) std::printf("True objects (rendered): %s\n", names.c_str());
   printTable(last, truth);
   return 0;

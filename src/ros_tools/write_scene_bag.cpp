@@ -61,21 +61,36 @@ bool parse(int argc, char** argv, Options& o, std::string& error) {
     };
     double value = 0;
     bool ok = true;
-    if (arg == "--out") ok = text(o.out);
-    else if (arg == "--scene") ok = text(o.scene) && (o.scene == "paper" || o.scene == "random");
-    else if (arg == "--pcd") ok = text(o.pcd);
-    else if (arg == "--topic") ok = text(o.topic);
-    else if (arg == "--frame-id") ok = text(o.frame_id);
-    else if (arg == "--up-frame") ok = text(o.up_frame);
-    else if (arg == "--frames") ok = number(value, 1, 1000) && (o.frames = value, true);
-    else if (arg == "--seed") ok = number(value, 0, 4294967295.0) && (o.seed = value, true);
-    else if (arg == "--rate") ok = number(o.rate, 0.01, 100);
-    else if (arg == "--distance") ok = number(o.distance, 0.3, 5.0);
-    else if (arg == "--tilt") ok = number(o.tilt, 0.0, 90.0);
-    else if (arg == "--yaw") ok = number(o.yaw, -360.0, 360.0);
-    else if (arg == "--qvga") o.qvga = true;
-    else if (arg == "--no-tf") o.tf = false;
-    else ok = false;
+    if (arg == "--out")
+      ok = text(o.out);
+    else if (arg == "--scene")
+      ok = text(o.scene) && (o.scene == "paper" || o.scene == "random");
+    else if (arg == "--pcd")
+      ok = text(o.pcd);
+    else if (arg == "--topic")
+      ok = text(o.topic);
+    else if (arg == "--frame-id")
+      ok = text(o.frame_id);
+    else if (arg == "--up-frame")
+      ok = text(o.up_frame);
+    else if (arg == "--frames")
+      ok = number(value, 1, 1000) && (o.frames = value, true);
+    else if (arg == "--seed")
+      ok = number(value, 0, 4294967295.0) && (o.seed = value, true);
+    else if (arg == "--rate")
+      ok = number(o.rate, 0.01, 100);
+    else if (arg == "--distance")
+      ok = number(o.distance, 0.3, 5.0);
+    else if (arg == "--tilt")
+      ok = number(o.tilt, 0.0, 90.0);
+    else if (arg == "--yaw")
+      ok = number(o.yaw, -360.0, 360.0);
+    else if (arg == "--qvga")
+      o.qvga = true;
+    else if (arg == "--no-tf")
+      o.tf = false;
+    else
+      ok = false;
     if (!ok) {
       error = "bad or incomplete argument '" + arg + "'";
       return false;
@@ -126,8 +141,8 @@ tabletop_shapes::Objects osdGroundTruth(const pcl::PointCloud<pcl::PointXYZL>& c
   std::map<uint32_t, std::pair<Eigen::Vector3d, uint32_t>> sums;  // object -> (sum, count)
   for (const pcl::PointXYZL& p : cloud.points) {
     if (p.label < 20 || !std::isfinite(p.z)) continue;
-    auto& entry = sums.emplace(p.label / 10 - 1, std::make_pair(Eigen::Vector3d::Zero(), 0u))
-                      .first->second;
+    auto& entry =
+        sums.emplace(p.label / 10 - 1, std::make_pair(Eigen::Vector3d::Zero(), 0u)).first->second;
     entry.first += p.getVector3fMap().cast<double>();
     ++entry.second;
   }

@@ -165,15 +165,16 @@ LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud
     const Eigen::Vector3f v = p.getVector3fMap();
     const bool truly_table = p.label < 10;
     const int object = truly_table ? -1 : static_cast<int>(p.label / 10) - 1;
-    const bool said_table =
-        result.table.found && std::abs(result.table.plane.signedDistance(v)) < table_distance &&
-        insideHull(result.table.hull, result.table.plane.normal, v);
+    const bool said_table = result.table.found &&
+                            std::abs(result.table.plane.signedDistance(v)) < table_distance &&
+                            insideHull(result.table.hull, result.table.plane.normal, v);
     table_tp += said_table && truly_table;
     table_fp += said_table && !truly_table;
     table_fn += !said_table && truly_table;
 
     int cluster = -1;
-    if (!cluster_points->empty() && tree.nearestKSearch(Point(p.x, p.y, p.z), 1, index, squared_distance) > 0 &&
+    if (!cluster_points->empty() &&
+        tree.nearestKSearch(Point(p.x, p.y, p.z), 1, index, squared_distance) > 0 &&
         squared_distance[0] < cluster_distance * cluster_distance) {
       cluster = cluster_of[index[0]];
     }

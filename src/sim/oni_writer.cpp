@@ -91,8 +91,7 @@ uint64_t OniWriter::timestampOf(int frame_index) const {
 }
 
 void OniWriter::writeRecord(uint32_t type, uint32_t node_id, uint64_t undo_position,
-                            const std::string& fields, const void* payload,
-                            uint32_t payload_size) {
+                            const std::string& fields, const void* payload, uint32_t payload_size) {
   std::string header;
   append<uint32_t>(header, kRecordMagic);
   append<uint32_t>(header, type);
@@ -173,7 +172,7 @@ void OniWriter::writeNodeProperties(const Node& node) {
   append<uint16_t>(cropping, static_cast<uint16_t>(width));
   append<uint16_t>(cropping, static_cast<uint16_t>(height));
   writeGeneralProperty(node.id, "xnCropping", cropping);
-  writeIntProperty(node.id, "Mirror", 1);  // mirroring is a known property ...
+  writeIntProperty(node.id, "Mirror", 1);    // mirroring is a known property ...
   writeIntProperty(node.id, "xnMirror", 0);  // ... and off
 }
 
@@ -195,7 +194,7 @@ bool OniWriter::open(const std::string& path, const OniRecordingOptions& options
   if (options.with_color) nodes_.push_back(Node{2, kNodeTypeImage, 0, 0, {}});
 
   std::string header = "NI10";
-  append<uint8_t>(header, 1);   // version 1.0.1.0
+  append<uint8_t>(header, 1);  // version 1.0.1.0
   append<uint8_t>(header, 0);
   append<uint16_t>(header, 1);
   append<uint32_t>(header, 0);

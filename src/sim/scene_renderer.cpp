@@ -22,7 +22,7 @@ using Mat3 = Eigen::Matrix3d;
 using Rgb = std::array<float, 3>;
 
 struct Hit {
-  double t = kInf;  // along the ray d = (x, y, 1) in the optical frame, so t = depth z
+  double t = kInf;             // along the ray d = (x, y, 1) in the optical frame, so t = depth z
   Vec3 normal = Vec3::Zero();  // world, facing the ray
   int label = kNoReturn;
 };
@@ -33,7 +33,7 @@ struct Solid {
   enum Kind { kBox, kRound } kind = kBox;
   Mat3 world_from_local = Mat3::Identity();
   Vec3 origin = Vec3::Zero();
-  Vec3 half_size = Vec3::Zero();  // box
+  Vec3 half_size = Vec3::Zero();                         // box
   double radius_bottom = 0, radius_top = 0, height = 0;  // round
   int label = kNoReturn;
   Rgb colour{0, 0, 0};
@@ -42,8 +42,8 @@ struct Solid {
     const Vec3 o = world_from_local.transpose() * (ray_origin - origin);
     const Vec3 d = world_from_local.transpose() * ray_dir;
     Vec3 local_normal;
-    const double t = kind == kBox ? intersectBox(o, d, local_normal)
-                                  : intersectRound(o, d, local_normal);
+    const double t =
+        kind == kBox ? intersectBox(o, d, local_normal) : intersectRound(o, d, local_normal);
     if (t < hit.t) {
       hit.t = t;
       hit.normal = world_from_local * local_normal;
@@ -168,7 +168,7 @@ Solid makeBox(const Vec3& centre, const Vec3& size, double yaw, int label, const
 }
 
 // Distinct, saturated object colours; surfaces of the room are muted.
-const Rgb kObjectPalette[] = {{220, 40, 40},  {40, 170, 60},  {40, 90, 220}, {230, 200, 30},
+const Rgb kObjectPalette[] = {{220, 40, 40},  {40, 170, 60},  {40, 90, 220},  {230, 200, 30},
                               {200, 50, 200}, {30, 190, 200}, {240, 130, 20}, {120, 60, 180}};
 const Rgb kTableColour{170, 120, 70};
 const Rgb kFloorColour{110, 110, 115};
@@ -178,10 +178,10 @@ std::vector<Solid> buildSolids(const SceneSpec& spec) {
   const TableSpec& table = spec.table;
   std::vector<Solid> solids;
   const double floor_thickness = 0.01;
-  solids.push_back(makeBox(Vec3(0, 0, -floor_thickness / 2),
-                           Vec3(2 * table.floor_half_size, 2 * table.floor_half_size,
-                                floor_thickness),
-                           0, kFloorLabel, kFloorColour));
+  solids.push_back(
+      makeBox(Vec3(0, 0, -floor_thickness / 2),
+              Vec3(2 * table.floor_half_size, 2 * table.floor_half_size, floor_thickness), 0,
+              kFloorLabel, kFloorColour));
   solids.push_back(makeBox(Vec3(0, 0, table.height - table.thickness / 2),
                            Vec3(table.length, table.width, table.thickness), 0, kTableLabel,
                            kTableColour));
@@ -201,8 +201,7 @@ std::vector<Solid> buildSolids(const SceneSpec& spec) {
     const int label = static_cast<int>(i);
     if (object.type == ShapeType::Cube) {
       const Vec3 size = object.box_size.cast<double>();
-      solids.push_back(makeBox(bottom + Vec3(0, 0, size.z() / 2), size, object.yaw, label,
-                               colour));
+      solids.push_back(makeBox(bottom + Vec3(0, 0, size.z() / 2), size, object.yaw, label, colour));
     } else if (object.type == ShapeType::Cylinder || object.type == ShapeType::Cone) {
       Solid s;
       s.kind = Solid::kRound;
@@ -640,8 +639,8 @@ std::string groundTruthJson(const RenderedScene& scene) {
   out << std::setprecision(7) << std::boolalpha;
   out << "{\n  \"frame\": \"camera optical (x right, y down, z forward), metres\",\n";
   out << "  \"seed\": " << spec.seed << ",\n";
-  out << "  \"camera\": {\"width\": " << spec.camera.width << ", \"height\": "
-      << spec.camera.height << ", \"fx\": " << spec.camera.fx << ", \"fy\": " << spec.camera.fy
+  out << "  \"camera\": {\"width\": " << spec.camera.width << ", \"height\": " << spec.camera.height
+      << ", \"fx\": " << spec.camera.fx << ", \"fy\": " << spec.camera.fy
       << ", \"cx\": " << spec.camera.cx << ", \"cy\": " << spec.camera.cy
       << ",\n    \"distance\": " << spec.placement.distance
       << ", \"tilt_deg\": " << spec.placement.tilt_deg

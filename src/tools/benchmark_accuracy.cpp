@@ -65,12 +65,12 @@ void progress(int done, int total) {
 
 // The paper's four objects in a jittered 2 x 2 grid, random slots and yaws, random camera.
 SceneSpec paperObjectsScene(std::mt19937& rng) {
-  std::uniform_real_distribution<float> distance(0.6f, 1.5f), tilt(20.0f, 60.0f),
-      yaw(0.0f, 360.0f), jitter(-0.015f, 0.015f), object_yaw(0.0f, static_cast<float>(kPi));
+  std::uniform_real_distribution<float> distance(0.6f, 1.5f), tilt(20.0f, 60.0f), yaw(0.0f, 360.0f),
+      jitter(-0.015f, 0.015f), object_yaw(0.0f, static_cast<float>(kPi));
   CameraPlacement placement{distance(rng), tilt(rng), yaw(rng)};
   SceneSpec spec = paperScene(placement, NoiseModel(), static_cast<uint32_t>(rng()));
-  std::vector<Eigen::Vector2f> slots = {{-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f},
-                                        {0.13f, 0.13f}};
+  std::vector<Eigen::Vector2f> slots = {
+      {-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f}, {0.13f, 0.13f}};
   std::shuffle(slots.begin(), slots.end(), rng);
   for (size_t i = 0; i < spec.objects.size(); ++i) {
     spec.objects[i].position_on_table = slots[i] + Eigen::Vector2f(jitter(rng), jitter(rng));
@@ -198,8 +198,8 @@ void printPaperTable(const Tally& tally) {
           errorsOf(near, [&](const Measure& m) { return m.name == name; });
       const double median = percentile(errors, 0.5), p90 = percentile(errors, 0.9);
       const double goal = std::string(name) == "volume" ? 5.0 : 2.0;
-      std::printf("%-13s %-14s %5zu %8.2f%% %8.2f%% %8.2f%%  %s\n", object, name,
-                  errors.size(), median, p90, kPaperErrors.at(object).at(name),
+      std::printf("%-13s %-14s %5zu %8.2f%% %8.2f%% %8.2f%%  %s\n", object, name, errors.size(),
+                  median, p90, kPaperErrors.at(object).at(name),
                   errors.empty() ? "-" : (median <= goal ? "met" : "MISSED"));
     }
   }
@@ -218,11 +218,11 @@ void printDetection(const Tally& tally) {
   }
   std::printf("\nDetection and type, every object with >= 200 visible pixels (%d of %zu)\n",
               counted, tally.samples.size());
-  std::printf("  detected %d / %d = %.1f %%, type right %d / %d = %.1f %%, false positives %d,"
-              " scenes without table %d\n",
-              detected, counted, 100.0 * detected / std::max(counted, 1), right, detected,
-              100.0 * right / std::max(detected, 1), tally.false_positives,
-              tally.scenes_without_table);
+  std::printf(
+      "  detected %d / %d = %.1f %%, type right %d / %d = %.1f %%, false positives %d,"
+      " scenes without table %d\n",
+      detected, counted, 100.0 * detected / std::max(counted, 1), right, detected,
+      100.0 * right / std::max(detected, 1), tally.false_positives, tally.scenes_without_table);
   std::printf("\n  %-10s %8s %8s %8s %8s %8s\n", "truth", "cube", "cylinder", "cone", "unknown",
               "missed");
   for (ShapeType t : types) {
@@ -326,7 +326,8 @@ void writePlots(const Options& options) {
 void runOsd(const Options& options) {
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(options.osd_dir)) {
-    if (entry.path().extension() == ".pcd" && entry.path().filename().string().rfind("learn", 0) == 0)
+    if (entry.path().extension() == ".pcd" &&
+        entry.path().filename().string().rfind("learn", 0) == 0)
       files.push_back(entry.path());
   }
   std::sort(files.begin(), files.end());
@@ -351,10 +352,9 @@ void runOsd(const Options& options) {
     std::string types;
     for (const std::string& t : score.types) types += (types.empty() ? "" : ",") + t;
     std::printf("  %-12s %8.1f%% %8.1f%% %8.1f%% %8.1f%% %8d / %-3d  %s\n",
-                file.stem().string().c_str(), 100 * score.table_precision,
-                100 * score.table_recall, 100 * score.object_precision,
-                100 * score.object_recall, score.objects_found_whole, score.labelled_objects,
-                types.c_str());
+                file.stem().string().c_str(), 100 * score.table_precision, 100 * score.table_recall,
+                100 * score.object_precision, 100 * score.object_recall, score.objects_found_whole,
+                score.labelled_objects, types.c_str());
   }
   std::printf("  labelled objects (>= 500 points) found as one object each: %d / %d = %.1f %%\n",
               whole, labelled, 100.0 * whole / std::max(labelled, 1));
@@ -371,14 +371,22 @@ Options parse(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (arg == "--paper-scenes") options.paper_scenes = std::stoi(value());
-    else if (arg == "--random-scenes") options.random_scenes = std::stoi(value());
-    else if (arg == "--seed") options.seed = static_cast<uint32_t>(std::stoul(value()));
-    else if (arg == "--up") options.auto_up = value() == "auto";
-    else if (arg == "--osd") options.osd_dir = value();
-    else if (arg == "--out") options.out_dir = value();
-    else if (arg == "--no-plots") options.plots = false;
-    else if (arg == "--verbose") options.verbose = true;
+    if (arg == "--paper-scenes")
+      options.paper_scenes = std::stoi(value());
+    else if (arg == "--random-scenes")
+      options.random_scenes = std::stoi(value());
+    else if (arg == "--seed")
+      options.seed = static_cast<uint32_t>(std::stoul(value()));
+    else if (arg == "--up")
+      options.auto_up = value() == "auto";
+    else if (arg == "--osd")
+      options.osd_dir = value();
+    else if (arg == "--out")
+      options.out_dir = value();
+    else if (arg == "--no-plots")
+      options.plots = false;
+    else if (arg == "--verbose")
+      options.verbose = true;
     else {
       std::fprintf(stderr,
                    "usage: benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S]"
@@ -403,11 +411,11 @@ int main(int argc, char** argv) {
     runScene(spec, options, tally);
     progress(i + 1, total);
   }
-  std::printf("Rendered Kinect-v1 scenes: %d with the paper's four objects, %d random"
-              " (1-4 objects), seed %u, up %s: %zu object instances\n",
-              options.paper_scenes, options.random_scenes, options.seed,
-              options.auto_up ? "estimated from the scene" : "given (as from tf2)",
-              tally.samples.size());
+  std::printf(
+      "Rendered Kinect-v1 scenes: %d with the paper's four objects, %d random"
+      " (1-4 objects), seed %u, up %s: %zu object instances\n",
+      options.paper_scenes, options.random_scenes, options.seed,
+      options.auto_up ? "estimated from the scene" : "given (as from tf2)", tally.samples.size());
   printPaperTable(tally);
   printDetection(tally);
   printBreakdowns(tally, options);

@@ -54,9 +54,12 @@ class Json {
   Json& string(const std::string& s) {
     out_ << '"';
     for (char c : s) {
-      if (c == '"' || c == '\\') out_ << '\\' << c;
-      else if (static_cast<unsigned char>(c) < 0x20) out_ << ' ';
-      else out_ << c;
+      if (c == '"' || c == '\\')
+        out_ << '\\' << c;
+      else if (static_cast<unsigned char>(c) < 0x20)
+        out_ << ' ';
+      else
+        out_ << c;
     }
     out_ << '"';
     return *this;
@@ -123,7 +126,7 @@ void loadConfig(const std::string& path, PipelineParams& params) {
 void checkPcdHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw UsageError("cannot read PCD file " + path);
-  const std::set<std::string> keywords = {"VERSION", "FIELDS", "SIZE",   "TYPE",  "COUNT",
+  const std::set<std::string> keywords = {"VERSION", "FIELDS", "SIZE",      "TYPE",  "COUNT",
                                           "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS"};
   std::string line, data;
   long long points = -1, point_size = 0;
@@ -136,7 +139,8 @@ void checkPcdHeader(const std::string& path) {
       words >> data;
       break;
     }
-    if (!keywords.count(keyword)) throw UsageError("cannot read PCD file " + path + ": not a PCD header");
+    if (!keywords.count(keyword))
+      throw UsageError("cannot read PCD file " + path + ": not a PCD header");
     if (keyword == "POINTS" && !(words >> points)) points = -2;
     if (keyword == "SIZE") {
       for (long long size; words >> size;) point_size += size;
@@ -230,8 +234,8 @@ void printParameterTable() {
   PipelineParams defaults;
   std::cout << "| parameter | default | range | meaning |\n|---|---|---|---|\n";
   forEachParameter(defaults, [](const ParameterInfo& info, double& value) {
-    std::cout << "| `" << info.stage << "." << info.name << "` | " << value << " | "
-              << info.min << " .. " << info.max << " | " << info.description << " |\n";
+    std::cout << "| `" << info.stage << "." << info.name << "` | " << value << " | " << info.min
+              << " .. " << info.max << " | " << info.description << " |\n";
   });
 }
 

@@ -38,8 +38,8 @@ struct View {
 };
 
 struct Scene {
-  NormalCloud object;     // camera frame, through MLS like in the pipeline
-  Plane table;            // camera frame
+  NormalCloud object;  // camera frame, through MLS like in the pipeline
+  Plane table;         // camera frame
   Eigen::Isometry3f camera_from_table;
 };
 
@@ -61,11 +61,11 @@ Scene render(const View& view, unsigned seed = 11) {
 }
 
 float angleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-  return std::acos(std::clamp(std::abs(a.normalized().dot(b.normalized())), 0.0f, 1.0f)) *
-         180.0f / static_cast<float>(kPi);
+  return std::acos(std::clamp(std::abs(a.normalized().dot(b.normalized())), 0.0f, 1.0f)) * 180.0f /
+         static_cast<float>(kPi);
 }
 
-const Eigen::Vector3f kMilkTea(0.15f, 0.095f, 0.05f);   // the paper's boxes
+const Eigen::Vector3f kMilkTea(0.15f, 0.095f, 0.05f);  // the paper's boxes
 const Eigen::Vector3f kTeapot(0.175f, 0.12f, 0.10f);
 
 // 2.5 mm spacing divides every edge, so the samples reach all the box's edges. Camera
@@ -78,8 +78,7 @@ const View kViews[] = {
     {"milk-tea top+front", kMilkTea, 0.0f, {0.0f, -0.8f, 0.6f}, 0.0025f, 0.0f, 2},
     {"milk-tea top+front noisy", kMilkTea, 0.0f, {0.0f, -0.8f, 0.6f}, 0.0025f, 0.0015f, 2},
     // No top face: the height is the rim of the noisy points (99 % quantile), +1.4 mm here.
-    {"milk-tea two sides noisy", kMilkTea, 0.35f, {0.5f, -0.6f, 0.035f}, 0.0025f, 0.0015f, 2,
-     3.0f},
+    {"milk-tea two sides noisy", kMilkTea, 0.35f, {0.5f, -0.6f, 0.035f}, 0.0025f, 0.0015f, 2, 3.0f},
     {"milk-tea top only", kMilkTea, 0.4f, {0.02f, -0.01f, 0.8f}, 0.0025f, 0.0f, 1},
     {"milk-tea top only noisy", kMilkTea, 0.4f, {0.02f, -0.01f, 0.8f}, 0.0025f, 0.0015f, 1},
     {"teapot 3 faces", kTeapot, -0.5f, {-0.5f, -0.6f, 0.5f}, 0.0025f, 0.0f, 3},
@@ -95,8 +94,8 @@ TEST(CubeFit, PaperBoxesFromOneTwoAndThreeFaces) {
     const Scene scene = render(view);
     const auto start = std::chrono::steady_clock::now();
     const ShapeFit fit = fitCube(scene.object, scene.table, CubeParams{});
-    const double ms = std::chrono::duration<double, std::milli>(
-                          std::chrono::steady_clock::now() - start).count();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     ASSERT_TRUE(fit.ok) << view.name << ": " << fit.reason;
     EXPECT_EQ(fit.type, ShapeType::Cube);
     EXPECT_EQ(fit.faces_seen, view.faces) << view.name;
@@ -105,16 +104,16 @@ TEST(CubeFit, PaperBoxesFromOneTwoAndThreeFaces) {
     // Edges sorted length >= width, height along z (eq. 17: relative error).
     const Eigen::Vector3f truth(std::max(view.size.x(), view.size.y()),
                                 std::min(view.size.x(), view.size.y()), view.size.z());
-    const Eigen::Vector3f error =
-        100.0f * (fit.dimensions - truth).cwiseAbs().cwiseQuotient(truth);
+    const Eigen::Vector3f error = 100.0f * (fit.dimensions - truth).cwiseAbs().cwiseQuotient(truth);
     const Eigen::Vector3f true_center =
         scene.camera_from_table * Eigen::Vector3f(0.02f, -0.01f, view.size.z() / 2);
     const float center_error = (fit.center - true_center).norm();
-    std::printf("%-28s %4zu pts faces %d  edges %.1f %.1f %.1f mm  err %.2f %.2f %.2f %%  "
-                "centre %.1f mm  rmse %.2f mm  %.2f ms\n",
-                view.name, scene.object.size(), fit.faces_seen, fit.dimensions.x() * 1000,
-                fit.dimensions.y() * 1000, fit.dimensions.z() * 1000, error.x(), error.y(),
-                error.z(), center_error * 1000, fit.rmse * 1000, ms);
+    std::printf(
+        "%-28s %4zu pts faces %d  edges %.1f %.1f %.1f mm  err %.2f %.2f %.2f %%  "
+        "centre %.1f mm  rmse %.2f mm  %.2f ms\n",
+        view.name, scene.object.size(), fit.faces_seen, fit.dimensions.x() * 1000,
+        fit.dimensions.y() * 1000, fit.dimensions.z() * 1000, error.x(), error.y(), error.z(),
+        center_error * 1000, fit.rmse * 1000, ms);
     EXPECT_LT(error.maxCoeff(), view.edge_tolerance_percent) << view.name;
     EXPECT_LT(center_error, 0.005f) << view.name;
     EXPECT_LT(fit.rmse, view.sigma > 0 ? 0.0025f : 0.0015f) << view.name;
@@ -124,9 +123,9 @@ TEST(CubeFit, PaperBoxesFromOneTwoAndThreeFaces) {
     EXPECT_LT(angleDeg(axes.col(2), scene.table.normal), 0.1f) << view.name;
     EXPECT_GT(axes.col(2).dot(scene.table.normal), 0.0f) << view.name;
     const float long_edge_yaw = view.yaw + (view.size.x() >= view.size.y() ? 0.0f : kPi / 2);
-    const Eigen::Vector3f true_x = scene.camera_from_table.linear() *
-                                   Eigen::Vector3f(std::cos(long_edge_yaw),
-                                                   std::sin(long_edge_yaw), 0.0f);
+    const Eigen::Vector3f true_x =
+        scene.camera_from_table.linear() *
+        Eigen::Vector3f(std::cos(long_edge_yaw), std::sin(long_edge_yaw), 0.0f);
     EXPECT_LT(angleDeg(axes.col(0), true_x), 2.0f) << view.name;
   }
 }

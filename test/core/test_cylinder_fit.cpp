@@ -159,9 +159,9 @@ TEST(CircleFit, AlgebraicIsExactWithoutNoiseFarFromTheOrigin) {
 }
 
 struct ArcStatistics {
-  double algebraic_bias = 0, refined_bias = 0;  // mean (fit - truth)
+  double algebraic_bias = 0, refined_bias = 0;    // mean (fit - truth)
   double algebraic_worst = 0, refined_worst = 0;  // max |fit - truth|
-  double refined_rms = 0;  // RMS (fit - truth)
+  double refined_rms = 0;                         // RMS (fit - truth)
   int refined_better = 0;  // trials where the refinement moved closer to the truth
 };
 
@@ -185,11 +185,12 @@ ArcStatistics arcStatistics(float degrees, float sigma, int trials, bool along_r
     EXPECT_LE(refined.rmse, algebraic.rmse + 1e-7f);
   }
   stats.refined_rms = std::sqrt(stats.refined_rms);
-  std::printf("arc %3.0f deg sigma %.0f mm %s: radius bias algebraic %+.2f mm (worst %.2f), "
-              "refined %+.2f mm (rms %.2f, worst %.2f), refined closer in %d/%d\n",
-              degrees, sigma * 1e3, along_ray ? "ray noise " : "isotropic",
-              stats.algebraic_bias * 1e3, stats.algebraic_worst * 1e3, stats.refined_bias * 1e3,
-              stats.refined_rms * 1e3, stats.refined_worst * 1e3, stats.refined_better, trials);
+  std::printf(
+      "arc %3.0f deg sigma %.0f mm %s: radius bias algebraic %+.2f mm (worst %.2f), "
+      "refined %+.2f mm (rms %.2f, worst %.2f), refined closer in %d/%d\n",
+      degrees, sigma * 1e3, along_ray ? "ray noise " : "isotropic", stats.algebraic_bias * 1e3,
+      stats.algebraic_worst * 1e3, stats.refined_bias * 1e3, stats.refined_rms * 1e3,
+      stats.refined_worst * 1e3, stats.refined_better, trials);
   return stats;
 }
 
@@ -254,8 +255,8 @@ TEST(CylinderFit, PaperMugFromAKinectViewpoint) {
   for (unsigned seed : {1u, 2u, 3u}) {
     const Scene scene = roundScene(kMugRadius, kMugRadius, kMugHeight, seed, false);
     const ShapeFit fit = fitCylinder(scene.object, scene.table, CylinderParams{});
-    std::printf("mug seed %u: r %.2f mm h %.2f mm centre err %.2f mm rmse %.2f mm, %d pts\n",
-                seed, fit.radius * 1e3, fit.height * 1e3,
+    std::printf("mug seed %u: r %.2f mm h %.2f mm centre err %.2f mm rmse %.2f mm, %d pts\n", seed,
+                fit.radius * 1e3, fit.height * 1e3,
                 (fit.center - trueCentre(scene, kMugHeight)).norm() * 1e3, fit.rmse * 1e3,
                 fit.points);
     expectMug(fit, scene, "fitCylinder");
@@ -266,8 +267,7 @@ TEST(CylinderFit, PaperMugFromAKinectViewpoint) {
 
 TEST(CylinderFit, PaperMugFromBelowItsTop) {
   // Camera at 0.1 m, below the mug's top: no top disc, the height comes from the side wall.
-  const Scene scene =
-      roundScene(kMugRadius, kMugRadius, kMugHeight, 6, false, 0.002f, false, 0.1f);
+  const Scene scene = roundScene(kMugRadius, kMugRadius, kMugHeight, 6, false, 0.002f, false, 0.1f);
   const ShapeFit fit = fitRoundObject(scene.object, scene.table, CylinderParams{}, ConeParams{});
   std::printf("mug from below its top: r %.2f mm h %.2f mm\n", fit.radius * 1e3, fit.height * 1e3);
   expectMug(fit, scene, "low camera");
@@ -296,9 +296,10 @@ TEST(CylinderFit, TrimmingIgnoresTheMugsHandle) {
   }
   const Circle plain = refineCircleGeometric(side, fitCircleAlgebraic(side), 50);
   ASSERT_TRUE(plain.ok);
-  std::printf("mug with handle: radius trimmed %.2f mm, plain least squares %.2f mm (%d of %zu "
-              "side points kept)\n",
-              fit.radius * 1e3, plain.radius * 1e3, fit.points, side.size());
+  std::printf(
+      "mug with handle: radius trimmed %.2f mm, plain least squares %.2f mm (%d of %zu "
+      "side points kept)\n",
+      fit.radius * 1e3, plain.radius * 1e3, fit.points, side.size());
   EXPECT_LT(std::abs(fit.radius - kMugRadius), std::abs(plain.radius - kMugRadius) / 2);
   EXPECT_LT(fit.points, static_cast<int>(side.size()) - 60);  // the handle's 84 points mostly
 }
@@ -363,10 +364,9 @@ TEST(ConeFit, NoisyCylindersAreNotCones) {
 TEST(CylinderFit, BadInputFailsWithAReason) {
   const Plane table = synthetic::tablePlane();
   const auto expectFailure = [&](const NormalCloud& cloud, const char* what) {
-    for (const ShapeFit& fit :
-         {fitCylinder(cloud, table, CylinderParams{}),
-          fitCone(cloud, table, CylinderParams{}, ConeParams{}),
-          fitRoundObject(cloud, table, CylinderParams{}, ConeParams{})}) {
+    for (const ShapeFit& fit : {fitCylinder(cloud, table, CylinderParams{}),
+                                fitCone(cloud, table, CylinderParams{}, ConeParams{}),
+                                fitRoundObject(cloud, table, CylinderParams{}, ConeParams{})}) {
       EXPECT_FALSE(fit.ok) << what << " " << shapeTypeName(fit.type);
       EXPECT_FALSE(fit.reason.empty()) << what;
     }
@@ -418,9 +418,9 @@ TEST(CylinderFit, BadInputFailsWithAReason) {
   Sampler sampler;
   sampler.spacing = 0.01f;
   sampler.camera = Eigen::Vector3f(0.0f, -3.0f, 1.5f);
-  const NormalCloud drum = analyticNormals(
-      *synthetic::roundObject(0.5f, 0.5f, 0.2f, Eigen::Vector2f::Zero(), sampler), 0.5f, 0.5f,
-      0.2f, Eigen::Vector2f::Zero());
+  const NormalCloud drum =
+      analyticNormals(*synthetic::roundObject(0.5f, 0.5f, 0.2f, Eigen::Vector2f::Zero(), sampler),
+                      0.5f, 0.5f, 0.2f, Eigen::Vector2f::Zero());
   const ShapeFit fit = fitCylinder(drum, table, CylinderParams{});
   EXPECT_FALSE(fit.ok);
   EXPECT_NE(fit.reason.find("radius"), std::string::npos) << fit.reason;

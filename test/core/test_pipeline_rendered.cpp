@@ -22,12 +22,12 @@ struct Outcome {
 Outcome runPaperScenes(int scenes, bool auto_up) {
   Outcome outcome;
   std::mt19937 rng(17);
-  std::uniform_real_distribution<float> distance(0.7f, 1.2f), tilt(30.0f, 55.0f),
-      yaw(0.0f, 360.0f), object_yaw(0.0f, 3.1f);
+  std::uniform_real_distribution<float> distance(0.7f, 1.2f), tilt(30.0f, 55.0f), yaw(0.0f, 360.0f),
+      object_yaw(0.0f, 3.1f);
   for (int i = 0; i < scenes; ++i) {
     SceneSpec spec = paperScene({distance(rng), tilt(rng), yaw(rng)}, NoiseModel(), 100 + i);
-    const Eigen::Vector2f slots[] = {{-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f},
-                                     {0.13f, 0.13f}};
+    const Eigen::Vector2f slots[] = {
+        {-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f}, {0.13f, 0.13f}};
     for (size_t k = 0; k < spec.objects.size(); ++k) {
       spec.objects[k].position_on_table = slots[(k + i) % 4];
       spec.objects[k].yaw = object_yaw(rng);
@@ -58,14 +58,11 @@ Outcome runPaperScenes(int scenes, bool auto_up) {
 // Issue goal: at most half the paper's error, and at most 3 % on edges, radii and heights.
 void expectWithinGoals(const Outcome& outcome) {
   const std::map<std::string, double> paper = {
-      {"milk-tea box/length", 2.07}, {"milk-tea box/width", 3.78},
-      {"milk-tea box/height", 13.89}, {"milk-tea box/volume", 15.72},
-      {"teapot box/length", 4.40},   {"teapot box/width", 4.62},
-      {"teapot box/height", 4.96},   {"teapot box/volume", 11.82},
-      {"mug/radius", 24.14},         {"mug/height", 3.83},
-      {"mug/volume", 40.22},         {"beaker/radius_bottom", 10.0},
-      {"beaker/radius_top", 10.0},   {"beaker/height", 5.27},
-      {"beaker/volume", 15.22}};
+      {"milk-tea box/length", 2.07},  {"milk-tea box/width", 3.78}, {"milk-tea box/height", 13.89},
+      {"milk-tea box/volume", 15.72}, {"teapot box/length", 4.40},  {"teapot box/width", 4.62},
+      {"teapot box/height", 4.96},    {"teapot box/volume", 11.82}, {"mug/radius", 24.14},
+      {"mug/height", 3.83},           {"mug/volume", 40.22},        {"beaker/radius_bottom", 10.0},
+      {"beaker/radius_top", 10.0},    {"beaker/height", 5.27},      {"beaker/volume", 15.22}};
   for (const auto& [measure, paper_error] : paper) {
     const auto found = outcome.errors.find(measure);
     ASSERT_NE(found, outcome.errors.end()) << measure << " never measured";

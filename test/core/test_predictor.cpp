@@ -10,7 +10,7 @@ namespace {
 struct Case {
   const char* name;
   bool round;
-  Eigen::Vector3f box_size;  // box: edges
+  Eigen::Vector3f box_size;       // box: edges
   float r_bottom, r_top, height;  // round: cylinder / cone
 };
 

@@ -57,11 +57,11 @@ TEST(Preprocess, CentroidsOnHandMadeGrid) {
   // Leaf 0.1 m: two points in voxel (0,0,0), one in (1,0,0), two in (-1,-1,-1).
   pcl::PointCloud<pcl::PointXYZ> in;
   in.push_back({0.01f, 0.02f, 0.03f});
-  in.push_back({0.15f, 0.05f, 0.05f});   // voxel (1,0,0)
+  in.push_back({0.15f, 0.05f, 0.05f});  // voxel (1,0,0)
   in.push_back({0.05f, 0.06f, 0.07f});
   in.push_back({-0.02f, -0.03f, -0.04f});
   in.push_back({-0.08f, -0.05f, -0.06f});
-  in.push_back({kNaN, 0.0f, 0.0f});      // skipped
+  in.push_back({kNaN, 0.0f, 0.0f});  // skipped
   in.header.frame_id = "camera";
   in.header.stamp = 42;
   Preprocessor pre(PreprocessParams{0.1f, 3.0f});
@@ -89,10 +89,10 @@ TEST(Preprocess, RangeFilterWithoutGrid) {
   pcl::PointCloud<pcl::PointXYZ> in;
   in.push_back({0.0f, 0.0f, 1.0f});
   in.push_back({0.0f, 2.9f, 0.0f});
-  in.push_back({1.8f, 0.0f, 2.39f});    // |p| just below 3.0: kept
-  in.push_back({0.0f, 0.0f, 3.1f});     // too far
-  in.push_back({3.0f, 3.0f, 3.0f});     // too far
-  in.push_back({kInf, 0.0f, 1.0f});     // invalid
+  in.push_back({1.8f, 0.0f, 2.39f});               // |p| just below 3.0: kept
+  in.push_back({0.0f, 0.0f, 3.1f});                // too far
+  in.push_back({3.0f, 3.0f, 3.0f});                // too far
+  in.push_back({kInf, 0.0f, 1.0f});                // invalid
   Preprocessor pre(PreprocessParams{0.0f, 3.0f});  // leaf 0: no voxel grid
   Cloud out;
   pre.apply(in, out);
@@ -179,8 +179,8 @@ TEST(Preprocess, VgaFrameIsFast) {
   for (int run = 0; run < 5; ++run) {
     const std::clock_t start = std::clock();
     pre.apply(in, out);
-    best_ms = std::min(best_ms, 1000.0 * static_cast<double>(std::clock() - start) /
-                                    CLOCKS_PER_SEC);
+    best_ms =
+        std::min(best_ms, 1000.0 * static_cast<double>(std::clock() - start) / CLOCKS_PER_SEC);
   }
   RecordProperty("vga_preprocess_cpu_ms", std::to_string(best_ms));
   EXPECT_LT(best_ms, 30.0);

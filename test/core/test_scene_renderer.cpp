@@ -340,8 +340,9 @@ TEST(SceneRenderer, RandomScenesAreValid) {
       const Eigen::Vector2f extent = a.footprintHalfExtents();
       EXPECT_LE(std::abs(a.position_on_table.x()) + extent.x(), 0.6f - 0.12f + 1e-5f);
       EXPECT_LE(std::abs(a.position_on_table.y()) + extent.y(), 0.4f - 0.12f + 1e-5f);
-      const Eigen::Vector3f centre = camera_from_world * Eigen::Vector3f(
-          a.position_on_table.x(), a.position_on_table.y(), 0.75f + a.objectHeight() / 2);
+      const Eigen::Vector3f centre =
+          camera_from_world * Eigen::Vector3f(a.position_on_table.x(), a.position_on_table.y(),
+                                              0.75f + a.objectHeight() / 2);
       EXPECT_GT(centre.z(), 0.45f);
       EXPECT_LT(std::abs(575.8f * centre.x() / centre.z()), 320.0f);
       EXPECT_LT(std::abs(575.8f * centre.y() / centre.z()), 240.0f);

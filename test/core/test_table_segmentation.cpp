@@ -48,17 +48,17 @@ std::vector<int> allIndices(const Cloud& cloud) {
 
 TEST(RefinePlaneOLS, RecoversTiltedPlaneAndPlaneThroughOrigin) {
   const Plane planes[] = {
-      {Eigen::Vector3f(0.05f, -0.8f, -0.6f).normalized(), 0.6f},   // a table seen by a camera
-      {Eigen::Vector3f(0.3f, -0.7f, -0.2f).normalized(), 0.0f},    // through the origin, d = 0
-      {Eigen::Vector3f(1.0f, 0.02f, 0.0f).normalized(), -0.4f},    // a wall, normal ~ x
+      {Eigen::Vector3f(0.05f, -0.8f, -0.6f).normalized(), 0.6f},  // a table seen by a camera
+      {Eigen::Vector3f(0.3f, -0.7f, -0.2f).normalized(), 0.0f},   // through the origin, d = 0
+      {Eigen::Vector3f(1.0f, 0.02f, 0.0f).normalized(), -0.4f},   // a wall, normal ~ x
   };
   unsigned seed = 1;
   for (const Plane& truth : planes) {
     const Cloud cloud = noisyPlane(truth, Eigen::Vector3f(0.1f, 0.2f, 1.0f), 0.002f, seed++);
     // Start from a RANSAC-like guess 5 deg off.
     Plane plane = truth;
-    plane.normal = (Eigen::AngleAxisf(degToRad(5.0f), truth.normal.unitOrthogonal()) *
-                    truth.normal).normalized();
+    plane.normal = (Eigen::AngleAxisf(degToRad(5.0f), truth.normal.unitOrthogonal()) * truth.normal)
+                       .normalized();
     plane.d += 0.01f;
     ASSERT_TRUE(refinePlaneOLS(cloud, allIndices(cloud), plane));
     EXPECT_LT(angleDeg(plane.normal, truth.normal), 0.5f);
@@ -74,8 +74,9 @@ TEST(RefinePlaneOLS, WorksWithoutAGoodInitialNormal) {
   const Cloud cloud = noisyPlane(truth, Eigen::Vector3f(0.3f, 0.0f, 1.0f), 0.001f, 7);
   Plane plane;
   ASSERT_TRUE(refinePlaneOLS(cloud, allIndices(cloud), plane));
-  EXPECT_LT(angleDeg(plane.normal.dot(truth.normal) < 0 ? -plane.normal : plane.normal,
-                     truth.normal), 0.5f);
+  EXPECT_LT(
+      angleDeg(plane.normal.dot(truth.normal) < 0 ? -plane.normal : plane.normal, truth.normal),
+      0.5f);
   EXPECT_NEAR(std::abs(plane.d), 0.3f, 0.001f);
 }
 
@@ -84,7 +85,7 @@ TEST(RefinePlaneOLS, DegenerateInputIsRejected) {
   for (int i = 0; i < 10; ++i) cloud.push_back(Point(0.1f * i, 0.2f * i, 1.0f + 0.05f * i));
   Plane plane;
   EXPECT_FALSE(refinePlaneOLS(cloud, allIndices(cloud), plane));  // collinear
-  EXPECT_FALSE(refinePlaneOLS(cloud, {0, 1}, plane));              // too few
+  EXPECT_FALSE(refinePlaneOLS(cloud, {0, 1}, plane));             // too few
   EXPECT_FALSE(refinePlaneOLS(cloud, {}, plane));
 }
 
@@ -92,10 +93,10 @@ TEST(RefinePlaneOLS, DegenerateInputIsRejected) {
 
 struct SyntheticScene {
   CloudPtr cloud = std::make_shared<Cloud>();
-  Plane table;                     // in the camera frame, normal up
-  Eigen::Vector3f up;              // in the camera frame
+  Plane table;         // in the camera frame, normal up
+  Eigen::Vector3f up;  // in the camera frame
   Eigen::Isometry3f table_to_camera;
-  size_t box_points_above = 0;     // box points at least min_height above the table
+  size_t box_points_above = 0;  // box points at least min_height above the table
 };
 
 constexpr float kTableHalfX = 0.5f, kTableMinY = 0.0f, kTableMaxY = 0.8f;
@@ -213,8 +214,8 @@ TEST(TableSegmenter, WithoutTableTheFloorIsTheSupport) {
   params.up = scene.up;
   const TableResult result = TableSegmenter(params).segment(scene.cloud);
   ASSERT_TRUE(result.found) << result.reason;
-  const Plane floor = synthetic::transformPlane(
-      scene.table_to_camera, Plane{Eigen::Vector3f::UnitZ(), -kFloorZ});
+  const Plane floor =
+      synthetic::transformPlane(scene.table_to_camera, Plane{Eigen::Vector3f::UnitZ(), -kFloorZ});
   EXPECT_LT(angleDeg(result.plane.normal, floor.normal), 0.5f);
   EXPECT_NEAR(result.plane.d, floor.d, 0.002f);
   EXPECT_TRUE(result.object_points->empty());
@@ -227,8 +228,8 @@ TEST(TableSegmenter, BadInputReportsAReason) {
     EXPECT_FALSE(result.found);
     EXPECT_FALSE(result.reason.empty());
   }
-  auto nans = std::make_shared<Cloud>(640, 480, Point(std::numeric_limits<float>::quiet_NaN(),
-                                                       0.0f, 1.0f));
+  auto nans =
+      std::make_shared<Cloud>(640, 480, Point(std::numeric_limits<float>::quiet_NaN(), 0.0f, 1.0f));
   TableResult result = segmenter.segment(nans);
   EXPECT_FALSE(result.found);
   EXPECT_FALSE(result.reason.empty());
@@ -259,9 +260,9 @@ TEST(TableSegmenter, BadInputReportsAReason) {
 
 struct LabelledScene {
   CloudPtr cloud = std::make_shared<Cloud>();  // preprocessed
-  Cloud table;                                  // raw labelled table points
-  pcl::PointCloud<pcl::PointXYZL> objects;      // raw labelled object points
-  Plane table_plane;                            // OLS fit of the labelled table points
+  Cloud table;                                 // raw labelled table points
+  pcl::PointCloud<pcl::PointXYZL> objects;     // raw labelled object points
+  Plane table_plane;                           // OLS fit of the labelled table points
 };
 
 LabelledScene loadOsd(const std::string& name) {
@@ -299,8 +300,7 @@ void checkOsdScene(const LabelledScene& scene, const Eigen::Vector3f& up) {
   EXPECT_LT(angleDeg(result.plane.normal, scene.table_plane.normal), 1.0f);
   size_t held = 0;
   for (const auto& p : scene.table) {
-    held += std::abs(result.plane.signedDistance(p.getVector3fMap())) <=
-            params.distance_threshold;
+    held += std::abs(result.plane.signedDistance(p.getVector3fMap())) <= params.distance_threshold;
   }
   EXPECT_GE(held, 0.95 * scene.table.size());
 
@@ -339,12 +339,12 @@ void checkOsdScene(const LabelledScene& scene, const Eigen::Vector3f& up) {
     for (const auto& [cluster, count] : part_clusters[label]) {
       if (count > best_count) best_cluster = cluster, best_count = count;
     }
-    EXPECT_GE(best_count, 0.9 * size) << "label " << label << ": " << best_count << " of "
-                                      << size << " points in one cluster";
+    EXPECT_GE(best_count, 0.9 * size)
+        << "label " << label << ": " << best_count << " of " << size << " points in one cluster";
     const uint32_t object = label / 10;
     const auto [it, inserted] = object_of_cluster.emplace(best_cluster, object);
-    EXPECT_EQ(it->second, object) << "cluster " << best_cluster << " holds objects "
-                                  << it->second << " and " << object;
+    EXPECT_EQ(it->second, object) << "cluster " << best_cluster << " holds objects " << it->second
+                                  << " and " << object;
   }
   EXPECT_GT(parts_checked, 0);
 }
@@ -372,8 +372,10 @@ TEST(TableSegmenterRealScenes, OsdCylinders) {
 
 TEST(TableSegmenterRealScenes, PclMugScene) {
   pcl::PointCloud<pcl::PointXYZRGBA> raw;
-  ASSERT_EQ(pcl::io::loadPCDFile(std::string(TABLETOP_SHAPES_TEST_DATA) +
-                                     "/table_scene_mug_stereo_textured.pcd", raw), 0);
+  ASSERT_EQ(
+      pcl::io::loadPCDFile(
+          std::string(TABLETOP_SHAPES_TEST_DATA) + "/table_scene_mug_stereo_textured.pcd", raw),
+      0);
   auto cloud = std::make_shared<Cloud>();
   Preprocessor().apply(raw, *cloud);
   TableParams params;

@@ -70,8 +70,7 @@ void checkConfig(const std::string& config_name, const std::vector<std::string>&
 TEST(CfgParams, EveryCfgParameterMatchesTheCoreTableAndEveryCoreParameterIsReconfigurable) {
   std::multiset<std::string> covered;
   checkConfig<tabletop_shapes::PreprocessConfig>("Preprocess", {"preprocess"}, covered);
-  checkConfig<tabletop_shapes::TableSegmentationConfig>("TableSegmentation", {"table"},
-                                                        covered);
+  checkConfig<tabletop_shapes::TableSegmentationConfig>("TableSegmentation", {"table"}, covered);
   checkConfig<tabletop_shapes::ClusteringConfig>("Clustering", {"clustering"}, covered);
   checkConfig<tabletop_shapes::ShapeEstimationConfig>(
       "ShapeEstimation", {"normals", "predictor", "cube", "cylinder", "cone"}, covered);
@@ -86,8 +85,7 @@ TEST(CfgParams, ApplyConfigCopiesEveryValueIntoThePipelineParameters) {
   config.tolerance = 0.031;
   PipelineParams params;
   std::string error;
-  ASSERT_TRUE(tabletop_shapes::bridge::applyConfig(config, {"clustering"}, params, error))
-      << error;
+  ASSERT_TRUE(tabletop_shapes::bridge::applyConfig(config, {"clustering"}, params, error)) << error;
   EXPECT_EQ(params.clustering.min_size, 12345);
   EXPECT_FLOAT_EQ(params.clustering.tolerance, 0.031f);
   EXPECT_EQ(params.table.min_inliers, PipelineParams().table.min_inliers);  // untouched

@@ -40,12 +40,12 @@ template <typename Message>
 class Recorder {
  public:
   explicit Recorder(const std::string& topic) {
-    subscriber_ = node_.subscribe<Message>(
-        topic, 50, [this](const boost::shared_ptr<const Message>& message) {
-          std::lock_guard<std::mutex> lock(mutex_);
-          messages_.push_back(message);
-          arrivals_.push_back(ros::WallTime::now().toSec());
-        });
+    subscriber_ = node_.subscribe<Message>(topic, 50,
+                                           [this](const boost::shared_ptr<const Message>& message) {
+                                             std::lock_guard<std::mutex> lock(mutex_);
+                                             messages_.push_back(message);
+                                             arrivals_.push_back(ros::WallTime::now().toSec());
+                                           });
   }
   size_t count() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -118,8 +118,8 @@ TEST(Playback, RateSizesFramesIntrinsicsAndPixelToPoint) {
     EXPECT_GT(clouds[i]->header.stamp, clouds[i - 1]->header.stamp) << "stamps must increase";
   }
   EXPECT_NEAR(median(stamp_steps), 1.0 / 30.0, 0.0005);  // stamps: the recorded schedule
-  std::printf("[ RESULT   ] cloud rate %.2f Hz over %zu clouds, median stamp step %.2f ms\n",
-              rate, n, median(stamp_steps) * 1e3);
+  std::printf("[ RESULT   ] cloud rate %.2f Hz over %zu clouds, median stamp step %.2f ms\n", rate,
+              n, median(stamp_steps) * 1e3);
 
   // Sizes and frames.
   const RgbCloud& cloud = *clouds.back();
@@ -312,11 +312,12 @@ TEST(Chain, RecordingOfKnownObjectsGivesTheObjects) {
   EXPECT_NEAR(result.cones[0].radius_bottom, 0.03, 0.006);
   EXPECT_NEAR(result.cones[0].radius_top, 0.0375, 0.006);
   EXPECT_NEAR(result.cones[0].height, 0.18, 0.012);
-  std::printf("[ RESULT   ] boxes %.3f %.3f %.3f / %.3f %.3f %.3f, cylinder r %.4f h %.3f, cone "
-              "r %.4f-%.4f h %.3f\n",
-              boxes[0][0], boxes[0][1], boxes[0][2], boxes[1][0], boxes[1][1], boxes[1][2],
-              result.cylinders[0].radius, result.cylinders[0].height,
-              result.cones[0].radius_bottom, result.cones[0].radius_top, result.cones[0].height);
+  std::printf(
+      "[ RESULT   ] boxes %.3f %.3f %.3f / %.3f %.3f %.3f, cylinder r %.4f h %.3f, cone "
+      "r %.4f-%.4f h %.3f\n",
+      boxes[0][0], boxes[0][1], boxes[0][2], boxes[1][0], boxes[1][1], boxes[1][2],
+      result.cylinders[0].radius, result.cylinders[0].height, result.cones[0].radius_bottom,
+      result.cones[0].radius_top, result.cones[0].height);
 }
 
 }  // namespace

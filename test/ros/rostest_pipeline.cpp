@@ -113,8 +113,8 @@ class PipelineTest : public ::testing::Test {
   }
   void onLog(const rosgraph_msgs::LogConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (msg->level == rosgraph_msgs::Log::WARN &&
-        msg->msg.find("up_frame") != std::string::npos && first_tf_warning_.isZero()) {
+    if (msg->level == rosgraph_msgs::Log::WARN && msg->msg.find("up_frame") != std::string::npos &&
+        first_tf_warning_.isZero()) {
       first_tf_warning_ = ros::WallTime::now();
       tf_warning_text_ = msg->msg;
     }
@@ -161,63 +161,67 @@ class PipelineTest : public ::testing::Test {
 // Rendered scenes: every object found with the right type and dimensions, frame after frame.
 TEST_F(PipelineTest, BagReplayObjectsMatchGroundTruth) {
   const int min_frames = static_cast<int>(privateParam("min_frames", 3));
-  const double edge_tolerance = privateParam("edge_tolerance", 0.10);     // relative
+  const double edge_tolerance = privateParam("edge_tolerance", 0.10);       // relative
   const double radius_tolerance = privateParam("radius_tolerance", 0.005);  // m
   const double height_tolerance = privateParam("height_tolerance", 0.015);  // m
   const double timeout = privateParam("timeout", 40.0);
 
   int evaluated = 0;
   size_t next = 0;
-  waitFor([&]() -> bool {
-    while (next < objectsReceived() && evaluated < min_frames) {
-      const ObjectsConstPtr result = objectsAt(next++);
-      ObjectsConstPtr truth;
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        const auto found = truth_.find(result->header.stamp);
-        if (found != truth_.end()) truth = found->second;
-      }
-      if (!truth) {
-        ADD_FAILURE() << "no ground truth with the stamp of objects " << result->header.stamp;
-        continue;
-      }
-      ++evaluated;
-      SCOPED_TRACE("frame stamped " + std::to_string(result->header.stamp.toSec()));
-      EXPECT_TRUE(result->table_found);
-      EXPECT_EQ(result->header.frame_id, truth->header.frame_id);
-      const std::vector<Solid> expected = solids(*truth), found = solids(*result);
-      EXPECT_EQ(objectCount(*result), expected.size()) << "found: " << describe(*result);
-      for (const Solid& want : expected) {
-        const auto nearest = std::min_element(found.begin(), found.end(),
-            [&](const Solid& a, const Solid& b) {
-              return (a.center - want.center).norm() < (b.center - want.center).norm();
-            });
-        if (nearest == found.end()) {
-          ADD_FAILURE() << "no " << want.type << " found";
-          continue;
-        }
-        const Solid& got = *nearest;
-        SCOPED_TRACE(want.type + " at " + std::to_string(want.center.x()) + ", " +
-                     std::to_string(want.center.y()) + ", " + std::to_string(want.center.z()));
-        EXPECT_LT((got.center - want.center).norm(), 0.03) << "centre";
-        EXPECT_EQ(got.type, want.type);
-        std::printf("%s: found %s, size %.4f %.4f %.4f, truth %.4f %.4f %.4f, centre off %.4f m\n",
-                    want.type.c_str(), got.type.c_str(), got.size[0], got.size[1], got.size[2],
-                    want.size[0], want.size[1], want.size[2], (got.center - want.center).norm());
-        if (got.type != want.type) continue;
-        if (want.type == "cube") {
-          for (int i = 0; i < 3; ++i) {
-            EXPECT_NEAR(got.size[i], want.size[i], edge_tolerance * want.size[i]) << "edge " << i;
+  waitFor(
+      [&]() -> bool {
+        while (next < objectsReceived() && evaluated < min_frames) {
+          const ObjectsConstPtr result = objectsAt(next++);
+          ObjectsConstPtr truth;
+          {
+            std::lock_guard<std::mutex> lock(mutex_);
+            const auto found = truth_.find(result->header.stamp);
+            if (found != truth_.end()) truth = found->second;
           }
-        } else {
-          EXPECT_NEAR(got.size[0], want.size[0], radius_tolerance) << "bottom radius";
-          EXPECT_NEAR(got.size[1], want.size[1], radius_tolerance) << "top radius";
-          EXPECT_NEAR(got.size[2], want.size[2], height_tolerance) << "height";
+          if (!truth) {
+            ADD_FAILURE() << "no ground truth with the stamp of objects " << result->header.stamp;
+            continue;
+          }
+          ++evaluated;
+          SCOPED_TRACE("frame stamped " + std::to_string(result->header.stamp.toSec()));
+          EXPECT_TRUE(result->table_found);
+          EXPECT_EQ(result->header.frame_id, truth->header.frame_id);
+          const std::vector<Solid> expected = solids(*truth), found = solids(*result);
+          EXPECT_EQ(objectCount(*result), expected.size()) << "found: " << describe(*result);
+          for (const Solid& want : expected) {
+            const auto nearest =
+                std::min_element(found.begin(), found.end(), [&](const Solid& a, const Solid& b) {
+                  return (a.center - want.center).norm() < (b.center - want.center).norm();
+                });
+            if (nearest == found.end()) {
+              ADD_FAILURE() << "no " << want.type << " found";
+              continue;
+            }
+            const Solid& got = *nearest;
+            SCOPED_TRACE(want.type + " at " + std::to_string(want.center.x()) + ", " +
+                         std::to_string(want.center.y()) + ", " + std::to_string(want.center.z()));
+            EXPECT_LT((got.center - want.center).norm(), 0.03) << "centre";
+            EXPECT_EQ(got.type, want.type);
+            std::printf(
+                "%s: found %s, size %.4f %.4f %.4f, truth %.4f %.4f %.4f, centre off %.4f m\n",
+                want.type.c_str(), got.type.c_str(), got.size[0], got.size[1], got.size[2],
+                want.size[0], want.size[1], want.size[2], (got.center - want.center).norm());
+            if (got.type != want.type) continue;
+            if (want.type == "cube") {
+              for (int i = 0; i < 3; ++i) {
+                EXPECT_NEAR(got.size[i], want.size[i], edge_tolerance * want.size[i])
+                    << "edge " << i;
+              }
+            } else {
+              EXPECT_NEAR(got.size[0], want.size[0], radius_tolerance) << "bottom radius";
+              EXPECT_NEAR(got.size[1], want.size[1], radius_tolerance) << "top radius";
+              EXPECT_NEAR(got.size[2], want.size[2], height_tolerance) << "height";
+            }
+          }
         }
-      }
-    }
-    return evaluated >= min_frames;
-  }, timeout);
+        return evaluated >= min_frames;
+      },
+      timeout);
   EXPECT_GE(evaluated, min_frames) << "frames evaluated before the timeout";
 }
 
@@ -228,12 +232,14 @@ TEST_F(PipelineTest, BagReplayCloudsSharedNotCopied) {
   const bool expect_zero_copy = ros::NodeHandle("~").param("expect_zero_copy", true);
   const char* key_shared = "input clouds shared (zero-copy)";
   const char* key_copied = "input clouds copied";
-  const bool reported = waitFor([&] {
-    for (const char* stage : {"table_segmentation", "clustering", "shape_estimation"}) {
-      if (!(diagnostic(stage, key_shared) + diagnostic(stage, key_copied) >= 2)) return false;
-    }
-    return true;
-  }, privateParam("timeout", 40.0));
+  const bool reported = waitFor(
+      [&] {
+        for (const char* stage : {"table_segmentation", "clustering", "shape_estimation"}) {
+          if (!(diagnostic(stage, key_shared) + diagnostic(stage, key_copied) >= 2)) return false;
+        }
+        return true;
+      },
+      privateParam("timeout", 40.0));
   ASSERT_TRUE(reported) << "the stages did not report two input clouds each";
   for (const char* stage : {"table_segmentation", "clustering", "shape_estimation"}) {
     SCOPED_TRACE(stage);
@@ -251,10 +257,12 @@ TEST_F(PipelineTest, BagReplayCloudsSharedNotCopied) {
 // stage reports its processing time.
 TEST_F(PipelineTest, BagReplayMarkersAndTimings) {
   ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, privateParam("timeout", 40.0)));
-  ASSERT_TRUE(waitFor([&] {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return !markers_.empty();
-  }, 5.0));
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return !markers_.empty();
+      },
+      5.0));
   const ObjectsConstPtr objects = objectsAt(0);
   visualization_msgs::MarkerArrayConstPtr markers;
   {
@@ -282,12 +290,15 @@ TEST_F(PipelineTest, BagReplayMarkersAndTimings) {
   EXPECT_EQ(solids, objectCount(*objects));
   EXPECT_EQ(labels, objectCount(*objects));
   EXPECT_EQ(strips, 1u);
-  ASSERT_TRUE(waitFor([&] {
-    for (const char* stage : kStages) {
-      if (!(diagnostic(stage, "frames") >= 1)) return false;
-    }
-    return true;
-  }, 10.0)) << "every stage reports on /diagnostics";
+  ASSERT_TRUE(waitFor(
+      [&] {
+        for (const char* stage : kStages) {
+          if (!(diagnostic(stage, "frames") >= 1)) return false;
+        }
+        return true;
+      },
+      10.0))
+      << "every stage reports on /diagnostics";
   for (const char* stage : kStages) {
     EXPECT_GT(diagnostic(stage, "last frame [ms]"), 0.0) << stage;
   }
@@ -301,8 +312,7 @@ TEST_F(PipelineTest, RealSceneExpectedObjectCount) {
   for (size_t i = 0; i < 2; ++i) {
     const ObjectsConstPtr objects = objectsAt(i);
     EXPECT_TRUE(objects->table_found);
-    EXPECT_EQ(objectCount(*objects), static_cast<size_t>(expected))
-        << describe(*objects);
+    EXPECT_EQ(objectCount(*objects), static_cast<size_t>(expected)) << describe(*objects);
   }
 }
 
@@ -335,13 +345,17 @@ TEST_F(PipelineTest, ReconfigureMinClusterSize) {
 // once the transform appears (published late by the fixture) the objects come.
 TEST_F(PipelineTest, MissingUpTransformWarnsThenRecovers) {
   const double timeout = privateParam("timeout", 40.0);
-  ASSERT_TRUE(waitFor([&] { return diagnostic("table_segmentation", "frames skipped") >= 1; },
-                      timeout)) << "frames without a transform are reported as skipped";
+  ASSERT_TRUE(
+      waitFor([&] { return diagnostic("table_segmentation", "frames skipped") >= 1; }, timeout))
+      << "frames without a transform are reported as skipped";
   EXPECT_EQ(objectsReceived(), 0u) << "no output while the transform is missing";
-  ASSERT_TRUE(waitFor([&] {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return !first_tf_warning_.isZero();
-  }, 10.0)) << "a warning naming up_frame on /rosout";
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return !first_tf_warning_.isZero();
+      },
+      10.0))
+      << "a warning naming up_frame on /rosout";
   ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, timeout))
       << "objects once the transform is there";
   {

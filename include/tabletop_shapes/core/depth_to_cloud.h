@@ -47,8 +47,7 @@ void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
 // The same with colour from an RGB888 image registered to the depth image (the same view); a
 // colour image of another resolution is sampled at the proportional pixel (nearest), so VGA
 // depth with SXGA colour works. `rgb` may be null: the points are then white.
-void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
-                  const uint8_t* rgb, int rgb_width, int rgb_height,
-                  pcl::PointCloud<pcl::PointXYZRGB>& cloud);
+void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics, const uint8_t* rgb,
+                  int rgb_width, int rgb_height, pcl::PointCloud<pcl::PointXYZRGB>& cloud);
 
 }  // namespace tabletop_shapes

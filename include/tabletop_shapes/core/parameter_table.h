@@ -10,9 +10,9 @@
 namespace tabletop_shapes {
 
 struct ParameterInfo {
-  const char* stage;        // preprocess, table, clustering, normals, predictor, cube, ...
-  const char* name;         // as in the parameter struct and dynamic_reconfigure
-  double min, max;          // accepted range (inclusive)
+  const char* stage;  // preprocess, table, clustering, normals, predictor, cube, ...
+  const char* name;   // as in the parameter struct and dynamic_reconfigure
+  double min, max;    // accepted range (inclusive)
   bool is_integer;
   const char* description;  // with the unit
 };

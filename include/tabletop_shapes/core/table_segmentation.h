@@ -7,12 +7,12 @@ namespace tabletop_shapes {
 
 struct TableResult {
   bool found = false;
-  std::string reason;                  // why no table was found (found == false)
-  Plane plane;                         // normal points up (same side as TableParams::up)
-  int inliers = 0;                     // points on the table plane
-  std::vector<Eigen::Vector3f> hull;   // convex hull of the inliers, on the plane, ordered
-  CloudPtr table_points;               // the inliers
-  CloudPtr object_points;              // above the table, inside hull - margin, outliers removed
+  std::string reason;                 // why no table was found (found == false)
+  Plane plane;                        // normal points up (same side as TableParams::up)
+  int inliers = 0;                    // points on the table plane
+  std::vector<Eigen::Vector3f> hull;  // convex hull of the inliers, on the plane, ordered
+  CloudPtr table_points;              // the inliers
+  CloudPtr object_points;             // above the table, inside hull - margin, outliers removed
 };
 
 class TableSegmenter {

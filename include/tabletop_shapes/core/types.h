@@ -51,10 +51,10 @@ struct TableParams {
   // PCL's mug (radius 0.054 m fitted instead of 0.039 m); 0.02 m keeps them, and the outlier
   // removal and minimum cluster size still drop table-edge noise.
   float hull_margin = 0.02f;
-  float min_height = 0.008f;              // object points start this far above the plane [m]
-  float max_height = 0.5f;                // and end this far above it [m]
-  int outlier_k = 50;                     // §2.4 neighbours
-  float outlier_alpha = 3.0f;             // §2.4 keep mean-distance < mu + alpha*sigma (OSD-tuned)
+  float min_height = 0.008f;   // object points start this far above the plane [m]
+  float max_height = 0.5f;     // and end this far above it [m]
+  int outlier_k = 50;          // §2.4 neighbours
+  float outlier_alpha = 3.0f;  // §2.4 keep mean-distance < mu + alpha*sigma (OSD-tuned)
 };
 
 // §2.5
@@ -72,11 +72,11 @@ struct NormalParams {
 
 // §3.1
 struct PredictorParams {
-  int k = 3;                      // neighbours in eq. 1
+  int k = 3;  // neighbours in eq. 1
   // Above -> cylinder, else cube. The paper's 0.07 fails with MLS normals of noisy points at
   // 5 mm spacing (boxes score up to 0.11 at sigma 1 mm, cylinders r <= 6 cm from 0.14).
   float threshold = 0.13f;
-  float section_low = 0.25f;      // representative middle section of the sorted d(p)
+  float section_low = 0.25f;  // representative middle section of the sorted d(p)
   float section_high = 0.75f;
   // A guessed model fitting worse than this [m] makes the others be tried: boxes fit real boxes
   // to 0.4-0.6 mm and cylinders to ~3 mm (test_cube_fit), so 2 mm separates the two.
@@ -85,26 +85,26 @@ struct PredictorParams {
 
 // §3.2
 struct CubeParams {
-  float distance_threshold = 0.007f;          // plane inlier distance [m]
-  float angle_threshold = static_cast<float>(kPi / 5);   // point normal vs plane normal
-  float min_support_fraction = 0.10f;         // plane needs >= 10 % of the points
-  float min_plane_angle = static_cast<float>(kPi / 6);   // reject planes closer than this
+  float distance_threshold = 0.007f;                    // plane inlier distance [m]
+  float angle_threshold = static_cast<float>(kPi / 5);  // point normal vs plane normal
+  float min_support_fraction = 0.10f;                   // plane needs >= 10 % of the points
+  float min_plane_angle = static_cast<float>(kPi / 6);  // reject planes closer than this
   int max_planes = 3;
   int ransac_iterations = 300;
 };
 
 // §3.3 and the truncated cone (beyond the paper)
 struct CylinderParams {
-  int max_refine_iterations = 50;   // geometric (Gauss-Newton) circle refinement
-  float min_radius = 0.005f;        // [m]
-  float max_radius = 0.3f;          // [m]
-  float top_margin = 0.01f;         // side-wall points end this far below the top [m] (rim
-                                    // blended into the top disc by smoothing)
+  int max_refine_iterations = 50;  // geometric (Gauss-Newton) circle refinement
+  float min_radius = 0.005f;       // [m]
+  float max_radius = 0.3f;         // [m]
+  float top_margin = 0.01f;        // side-wall points end this far below the top [m] (rim
+                                   // blended into the top disc by smoothing)
 };
 
 struct ConeParams {
-  float min_slope = 0.02f;          // |dr/dh| below this is a cylinder
-  float slope_sigma = 3.0f;         // slope must exceed this many standard errors
+  float min_slope = 0.02f;   // |dr/dh| below this is a cylinder
+  float slope_sigma = 3.0f;  // slope must exceed this many standard errors
 };
 
 // ---- results ----
@@ -121,13 +121,13 @@ struct ShapeFit {
   // Cube: box axes (x, y, z edges = dimensions). Cylinder / cone: z = axis, pointing up.
   Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
   Eigen::Vector3f dimensions = Eigen::Vector3f::Zero();  // cube edges [m]
-  float radius = 0.0f;         // cylinder [m]
-  float radius_bottom = 0.0f;  // cone, at the table [m]
-  float radius_top = 0.0f;     // cone [m]
-  float height = 0.0f;         // cylinder / cone [m]
-  int points = 0;              // points used by the fit
-  float rmse = 0.0f;           // fit residual RMS [m]
-  int faces_seen = 0;          // cube only: 1-3
+  float radius = 0.0f;                                   // cylinder [m]
+  float radius_bottom = 0.0f;                            // cone, at the table [m]
+  float radius_top = 0.0f;                               // cone [m]
+  float height = 0.0f;                                   // cylinder / cone [m]
+  int points = 0;                                        // points used by the fit
+  float rmse = 0.0f;                                     // fit residual RMS [m]
+  int faces_seen = 0;                                    // cube only: 1-3
   Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
 };
 

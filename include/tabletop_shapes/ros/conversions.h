@@ -25,8 +25,8 @@ Plane planeFromMsg(const Table& table);
 
 // Re-expresses everything in `objects` (poses, table plane and hull, unfitted centroids) in
 // `target_frame`, given the transform target <- current frame; every header gets the frame.
-void transformObjects(const Eigen::Isometry3d& target_from_source,
-                      const std::string& target_frame, Objects& objects);
+void transformObjects(const Eigen::Isometry3d& target_from_source, const std::string& target_frame,
+                      Objects& objects);
 
 // The markers of one frame: per object a translucent solid coloured by type (namespace
 // "solids") and a label with type and dimensions in cm ("labels"); the table hull as a line

@@ -12,7 +12,7 @@ namespace sim {
 double relativeErrorPercent(double estimate, double truth);
 double percentile(std::vector<double> values, double fraction);  // 0.5 = median; NaN if empty
 
-double volume(const ShapeFit& fit);               // of the fitted solid [m^3]; 0 if not ok
+double volume(const ShapeFit& fit);              // of the fitted solid [m^3]; 0 if not ok
 double volume(const GroundTruthObject& object);  // [m^3]
 
 // A matched pair of a true object and a detection (indices into the two lists).
@@ -42,8 +42,8 @@ std::vector<Measure> compareToTruth(const GroundTruthObject& truth, const ShapeF
 struct LabelledScore {
   double table_precision = 0.0, table_recall = 0.0;    // per point, vs labels 1-9
   double object_precision = 0.0, object_recall = 0.0;  // per point, vs labels >= 10
-  int labelled_objects = 0;  // objects with at least min_object_points points
-  int objects_found_whole = 0;  // of those: one cluster holds most of it, and mostly it
+  int labelled_objects = 0;        // objects with at least min_object_points points
+  int objects_found_whole = 0;     // of those: one cluster holds most of it, and mostly it
   std::vector<std::string> types;  // the types given to the clusters
 };
 // `cloud` is the raw labelled cloud given to the pipeline, `result` what it found;

@@ -70,8 +70,8 @@ struct NoiseModel {
   float axial_reference_range = 0.4f;     // [m]
 
   bool disparity_quantisation = true;
-  float baseline = 0.075f;            // projector - IR camera [m]
-  float disparity_step_px = 0.125f;   // sub-pixel disparity resolution [px]
+  float baseline = 0.075f;           // projector - IR camera [m]
+  float disparity_step_px = 0.125f;  // sub-pixel disparity resolution [px]
 
   bool grazing_dropout = true;
   float max_incidence_deg = 80.0f;  // ray vs surface normal; beyond: no return
@@ -97,10 +97,10 @@ struct NoiseModel {
 // Table top: a box of size x size y thickness, top face at `height`, centred above the world
 // origin; legs are not modelled. The floor (z = 0) and an optional wall complete the room.
 struct TableSpec {
-  float length = 1.2f;  // along world x [m]
-  float width = 0.8f;   // along world y [m]
-  float height = 0.75f;     // top face above the floor [m]
-  float thickness = 0.03f;  // [m]
+  float length = 1.2f;           // along world x [m]
+  float width = 0.8f;            // along world y [m]
+  float height = 0.75f;          // top face above the floor [m]
+  float thickness = 0.03f;       // [m]
   float floor_half_size = 5.0f;  // the floor is a square of 2 * this [m]
   bool back_wall = false;        // vertical plane y = width / 2 + wall_distance, facing -y
   float wall_distance = 0.5f;    // [m]
@@ -116,7 +116,7 @@ struct ObjectSpec {
   float radius_top = 0.04f;
   float height = 0.1f;
   Eigen::Vector2f position_on_table{0.0f, 0.0f};  // world (x, y) of the bottom centre [m]
-  float yaw = 0.0f;  // about world z [rad]
+  float yaw = 0.0f;                               // about world z [rad]
   std::string name;  // optional label (e.g. "milk-tea box"), copied into the ground truth
 
   float objectHeight() const { return type == ShapeType::Cube ? box_size.z() : height; }
@@ -156,10 +156,10 @@ struct GroundTruthObject {
   Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
   Eigen::Vector3f dimensions = Eigen::Vector3f::Zero();         // cube: edges along x, y, z
   Eigen::Vector3f sorted_dimensions = Eigen::Vector3f::Zero();  // cube: descending
-  float radius_bottom = 0.0f;  // round objects [m]
+  float radius_bottom = 0.0f;                                   // round objects [m]
   float radius_top = 0.0f;
-  float height = 0.0f;         // all types [m]
-  int visible_pixels = 0;      // valid cloud points on this object (after noise)
+  float height = 0.0f;     // all types [m]
+  int visible_pixels = 0;  // valid cloud points on this object (after noise)
   Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
 };
 
@@ -167,10 +167,10 @@ struct GroundTruthObject {
 enum SurfaceLabel : int { kNoReturn = -1, kFloorLabel = -2, kTableLabel = -3, kWallLabel = -4 };
 
 struct RenderedScene {
-  pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud;  // organised width x height, optical frame
-  std::vector<int> labels;                      // per pixel (row-major), SurfaceLabel or object
-  std::vector<GroundTruthObject> objects;       // in SceneSpec::objects order
-  Plane table_plane;                            // table top, normal up, optical frame
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr cloud;    // organised width x height, optical frame
+  std::vector<int> labels;                         // per pixel (row-major), SurfaceLabel or object
+  std::vector<GroundTruthObject> objects;          // in SceneSpec::objects order
+  Plane table_plane;                               // table top, normal up, optical frame
   Eigen::Vector3f up = -Eigen::Vector3f::UnitY();  // world up in the optical frame
   Eigen::Isometry3f world_from_camera = Eigen::Isometry3f::Identity();  // optical -> world
   SceneSpec spec;
@@ -191,10 +191,10 @@ struct RandomSceneOptions {
   float min_distance = 0.6f, max_distance = 1.5f;
   float min_tilt_deg = 20.0f, max_tilt_deg = 60.0f;
   float min_yaw_deg = 0.0f, max_yaw_deg = 360.0f;
-  float edge_margin = 0.12f;       // footprint to table edge [m]
-  float min_gap = 0.02f;           // between footprint discs [m]
+  float edge_margin = 0.12f;              // footprint to table edge [m]
+  float min_gap = 0.02f;                  // between footprint discs [m]
   float paper_object_probability = 0.5f;  // else a random size of a random type
-  float image_margin_px = 20.0f;   // every object's centre projects this far inside the image
+  float image_margin_px = 20.0f;  // every object's centre projects this far inside the image
   CameraIntrinsics camera;
   TableSpec table;
   NoiseModel noise;
