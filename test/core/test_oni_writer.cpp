@@ -22,13 +22,7 @@ class OniWriterTest : public ::testing::Test {
  protected:
   // OpenNI2 once per process: initialising it again after shutdown() crashes.
   static void SetUpTestSuite() { initialized_ = openni::OpenNI::initialize() == openni::STATUS_OK; }
-  // The file player's thread outlives device.close() for a moment: shutting down at once
-  // segfaulted at exit twice (both times on a loaded machine), as stop() then destroy() does
-  // without a pause (shared/notes/openni2.md).
-  static void TearDownTestSuite() {
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    openni::OpenNI::shutdown();
-  }
+  static void TearDownTestSuite() { openni::OpenNI::shutdown(); }
   void SetUp() override { ASSERT_TRUE(initialized_); }
   void TearDown() override { std::remove(path_.c_str()); }
   static inline bool initialized_ = false;
@@ -38,8 +32,13 @@ class OniWriterTest : public ::testing::Test {
     result.width = width;
     result.height = height;
     result.depth_mm.assign(static_cast<size_t>(width) * height, static_cast<uint16_t>(1000 + f));
-    result.depth_mm[7 * width + 5] = 4321;  // (u 5, v 7)
-    result.depth_mm[width + 1] = 0;         // no reading
+    // Markers only where the frame has those pixels (the bad-size frames are smaller: writing
+    // them anyway corrupted the heap, and the test died at exit under ctest).
+    const bool has_markers = width > 5 && height > 7;
+    if (has_markers) {
+      result.depth_mm[7 * width + 5] = 4321;  // (u 5, v 7)
+      result.depth_mm[width + 1] = 0;         // no reading
+    }
     if (color) {
       result.rgb.resize(result.depth_mm.size() * 3);
       for (size_t i = 0; i < result.depth_mm.size(); ++i) {
@@ -47,7 +46,7 @@ class OniWriterTest : public ::testing::Test {
         result.rgb[3 * i + 1] = static_cast<uint8_t>(2 * f);
         result.rgb[3 * i + 2] = static_cast<uint8_t>(3 * f);
       }
-      result.rgb[(7 * width + 5) * 3 + 1] = 222;
+      if (has_markers) result.rgb[(7 * width + 5) * 3 + 1] = 222;
     }
     return result;
   }
