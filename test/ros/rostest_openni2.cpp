@@ -109,9 +109,13 @@ TEST(Playback, RateSizesFramesIntrinsicsAndPixelToPoint) {
   const auto arrivals = points.arrivals();
   const auto clouds = points.messages();
   const size_t n = clouds.size() - first;
-  ASSERT_GE(n, 45u);
+  ASSERT_GE(n, 30u);
   const double rate = (n - 1) / (arrivals.back() - arrivals[first]);
-  EXPECT_NEAR(rate, 30.0, 3.0);  // arrival times: loose, the machine may be busy
+  // Arrival times depend on the machine's load (16.9 Hz seen in a loaded CI-like run), so they
+  // only catch playing faster than recorded (the looping player ran at 45 Hz) or stalling; the
+  // recorded 30 Hz schedule is checked exactly on the stamps below.
+  EXPECT_LE(rate, 33.0);
+  EXPECT_GE(rate, 10.0);
   std::vector<double> stamp_steps;
   for (size_t i = first + 1; i < clouds.size(); ++i) {
     stamp_steps.push_back((clouds[i]->header.stamp - clouds[i - 1]->header.stamp) * 1e-6);
