@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -337,8 +338,10 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
                                     std::cos(degToRad(params_.up_tolerance_deg)), false};
   const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint);
   if (candidates.empty()) {
-    result.reason = "no plane within " + std::to_string(params_.up_tolerance_deg) +
-                    " deg of up with at least " + std::to_string(params_.min_inliers) + " points";
+    char reason[128];
+    std::snprintf(reason, sizeof reason, "no plane within %g deg of up with at least %d points",
+                  params_.up_tolerance_deg, params_.min_inliers);
+    result.reason = reason;
     return result;
   }
   const Candidate& table = candidates[selectSupport(*cloud, candidates, params_)];

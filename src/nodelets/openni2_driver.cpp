@@ -4,13 +4,15 @@
 //   depth/image_raw + depth/camera_info       16UC1, millimetres
 //   rgb/image_raw + rgb/camera_info           rgb8
 //   depth_registered/points                   organised XYZRGB (XYZ when there is no colour),
-//                                             published as a shared pointer: zero copy to a
-//                                             nodelet in the same manager
+//                                             published as a shared pointer: Preprocess in the
+//                                             same manager gets an XYZRGB cloud without a copy
+//                                             (an XYZ one is copied once)
 // One worker thread owns every OpenNI2 object: it opens the device (retrying with back-off and a
 // throttled message while it is missing), runs the streams only while someone subscribes,
 // pairs depth and colour frames by timestamp, paces recordings at their recorded rate and
 // closes everything cleanly (OpenNI2 needs time between VideoStream::stop() and destroy()).
 #include "tabletop_shapes/core/depth_to_cloud.h"
+#include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/OpenNI2DriverConfig.h"
 
 #include <OpenNI.h>
@@ -683,13 +685,17 @@ void OpenNI2DriverNodelet::publishCloud() {
     depthToCloud(depth_mm_.data(), intrinsics, rgb_.data(), rgb_width_, rgb_height_, *cloud);
     header.frame_id = registered_ ? rgb_frame_id_ : depth_frame_id_;
     cloud->header = pcl_conversions::toPCL(header);
-    points_pub_.publish(boost::shared_ptr<const pcl::PointCloud<pcl::PointXYZRGB>>(cloud));
+    const boost::shared_ptr<const pcl::PointCloud<pcl::PointXYZRGB>> shared = cloud;
+    bridge::markPublished(shared);  // lets Preprocess count it as received without a copy
+    points_pub_.publish(shared);
   } else {
     auto cloud = boost::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
     depthToCloud(depth_mm_.data(), intrinsics, *cloud);
     header.frame_id = depth_frame_id_;
     cloud->header = pcl_conversions::toPCL(header);
-    points_pub_.publish(boost::shared_ptr<const pcl::PointCloud<pcl::PointXYZ>>(cloud));
+    const boost::shared_ptr<const pcl::PointCloud<pcl::PointXYZ>> shared = cloud;
+    bridge::markPublished(shared);
+    points_pub_.publish(shared);
   }
 }
 

@@ -82,6 +82,24 @@ void StageMonitor::frameSkipped(const std::string& reason) {
   last_skip_reason_ = reason;
 }
 
+void StageMonitor::frameWithoutResult(const std::string& reason) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++without_result_;
+  ++window_without_result_;
+  last_no_result_reason_ = reason;
+}
+
+bool ReasonThrottle::shouldLog(const std::string& reason) {
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (reason == last_reason_ && std::chrono::duration<double>(now - last_time_).count() < period_) {
+    return false;
+  }
+  last_reason_ = reason;
+  last_time_ = now;
+  return true;
+}
+
 void StageMonitor::publish(const ros::SteadyTimerEvent&) {
   diagnostic_msgs::DiagnosticStatus status;
   status.name = name_ + ": processing";
@@ -91,6 +109,9 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
     if (window_skipped_ > 0) {
       status.level = diagnostic_msgs::DiagnosticStatus::WARN;
       status.message = "frames skipped: " + last_skip_reason_;
+    } else if (window_without_result_ > 0) {
+      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      status.message = "frames without result: " + last_no_result_reason_;
     } else if (window_frames_ == 0) {
       status.level = diagnostic_msgs::DiagnosticStatus::OK;
       status.message = "waiting for input";
@@ -109,8 +130,10 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
                      keyValue("points out (last frame)", last_points_out_),
                      keyValue("input clouds shared (zero-copy)", inputs_shared_),
                      keyValue("input clouds copied", inputs_copied_),
-                     keyValue("last skip reason", last_skip_reason_)};
-    window_frames_ = window_skipped_ = 0;
+                     keyValue("last skip reason", last_skip_reason_),
+                     keyValue("frames without result", without_result_),
+                     keyValue("last no-result reason", last_no_result_reason_)};
+    window_frames_ = window_skipped_ = window_without_result_ = 0;
     window_sum_ms_ = window_max_ms_ = 0.0;
   }
   diagnostic_msgs::DiagnosticArray array;

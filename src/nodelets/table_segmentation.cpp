@@ -93,7 +93,10 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     } catch (const tf2::TransformException& error) {
       const std::string reason = "no transform from up_frame '" + up_frame_ + "' to '" +
                                  header.frame_id + "': " + error.what();
-      NODELET_WARN_THROTTLE(2.0, "skipping frame: %s", reason.c_str());
+      // tf's text holds times: throttle on the frames, not on the whole text.
+      if (problem_throttle_.shouldLog("no transform from " + up_frame_)) {
+        NODELET_WARN("skipping frame: %s", reason.c_str());
+      }
       monitor_->frameSkipped(reason);
       return false;
     }
@@ -111,6 +114,12 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     const CloudConstPtr input = pcl::pcl_ptr(cloud);
     if (!lookUpDirection(input, params)) return;
     const TableResult result = TableSegmenter(params).segment(input);
+    if (!result.found) {
+      if (problem_throttle_.shouldLog(result.reason)) {
+        NODELET_WARN("no table in the frame: %s", result.reason.c_str());
+      }
+      monitor_->frameWithoutResult("no table: " + result.reason);
+    }
 
     const std_msgs::Header header = pcl_conversions::fromPCL(cloud->header);
     boost::shared_ptr<Cloud> objects = result.found && result.object_points
@@ -134,6 +143,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   }
 
   std::unique_ptr<bridge::StageMonitor> monitor_;
+  bridge::ReasonThrottle problem_throttle_{5.0};
   std::string up_frame_;
   bool auto_up_ = false;
   ros::Duration tf_timeout_;

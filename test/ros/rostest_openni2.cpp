@@ -8,6 +8,7 @@
 
 #include <tabletop_shapes/Objects.h>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/NodeletList.h>
 #include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
@@ -275,6 +276,42 @@ std::string describe(const tabletop_shapes::Objects& m) {
          " cubes, " + std::to_string(m.cylinders.size()) + " cylinders, " +
          std::to_string(m.cones.size()) + " cones, " + std::to_string(m.unfitted.size()) +
          " unfitted";
+}
+
+// The last value of `key` that the nodelet `name` reported in its "processing" status (NAN
+// when not reported yet).
+double lastDiagnostic(Recorder<diagnostic_msgs::DiagnosticArray>& diagnostics,
+                      const std::string& name, const std::string& key) {
+  double value = NAN;
+  for (const auto& array : diagnostics.messages()) {
+    for (const auto& status : array->status) {
+      if (status.name != name + ": processing") continue;
+      for (const auto& kv : status.values) {
+        if (kv.key == key) value = std::atof(kv.value.c_str());
+      }
+    }
+  }
+  return value;
+}
+
+// The driver and Preprocess share a manager: every cloud Preprocess receives is the driver's
+// very object (the check can fail: bag_replay_standalone shows that a copied cloud counts as
+// copied).
+TEST(Chain, DriverCloudReachesPreprocessWithoutCopy) {
+  Recorder<diagnostic_msgs::DiagnosticArray> diagnostics("/diagnostics");
+  const std::string preprocess = "/tabletop_shapes/preprocess";
+  const char* key_shared = "input clouds shared (zero-copy)";
+  const char* key_copied = "input clouds copied";
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return lastDiagnostic(diagnostics, preprocess, key_shared) +
+                   lastDiagnostic(diagnostics, preprocess, key_copied) >=
+               3;
+      },
+      20.0))
+      << "preprocess did not report 3 input clouds within 20 s";
+  EXPECT_GE(lastDiagnostic(diagnostics, preprocess, key_shared), 3);
+  EXPECT_EQ(lastDiagnostic(diagnostics, preprocess, key_copied), 0);
 }
 
 // The paper's four objects (SPEC.md ground truth), rendered by render_oni --paper.

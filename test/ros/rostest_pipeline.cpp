@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 #include <dynamic_reconfigure/Reconfigure.h>
 #include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <tabletop_shapes/Objects.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -113,11 +115,20 @@ class PipelineTest : public ::testing::Test {
   }
   void onLog(const rosgraph_msgs::LogConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    logs_.push_back(msg);
     if (msg->level == rosgraph_msgs::Log::WARN && msg->msg.find("up_frame") != std::string::npos &&
         first_tf_warning_.isZero()) {
       first_tf_warning_ = ros::WallTime::now();
       tf_warning_text_ = msg->msg;
     }
+  }
+
+  // How many log lines of at least `level` contain `text`.
+  int logsContaining(const std::string& text, uint8_t level) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return static_cast<int>(std::count_if(logs_.begin(), logs_.end(), [&](const auto& log) {
+      return log->level >= level && log->msg.find(text) != std::string::npos;
+    }));
   }
 
   size_t objectsReceived() {
@@ -155,6 +166,7 @@ class PipelineTest : public ::testing::Test {
   std::map<std::string, std::map<std::string, std::string>> diagnostics_;
   ros::WallTime first_tf_warning_;
   std::string tf_warning_text_;
+  std::vector<rosgraph_msgs::LogConstPtr> logs_;
   ros::Subscriber objects_sub_, truth_sub_, markers_sub_, diagnostics_sub_, rosout_sub_;
 };
 
@@ -364,6 +376,121 @@ TEST_F(PipelineTest, MissingUpTransformWarnsThenRecovers) {
     EXPECT_NE(tf_warning_text_.find("base_link"), std::string::npos) << tf_warning_text_;
   }
   EXPECT_EQ(objectCount(*objectsAt(0)), static_cast<size_t>(privateParam("expected_objects", 4)));
+}
+
+// Clouds a robot can send by mistake, each with what the pipeline must say about it.
+struct BadCloud {
+  std::string what;
+  sensor_msgs::PointCloud2 cloud;
+  std::vector<std::string> messages;  // each expected in a log line of a stage
+  uint8_t level;
+};
+
+sensor_msgs::PointCloud2 xyzCloud(uint32_t width, uint32_t height,
+                                  const std::function<Eigen::Vector3f(uint32_t)>& point) {
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header.frame_id = "camera_rgb_optical_frame";
+  cloud.header.stamp = ros::Time::now();
+  sensor_msgs::PointCloud2Modifier modifier(cloud);
+  modifier.setPointCloud2FieldsByString(1, "xyz");
+  modifier.resize(width * height);
+  cloud.width = width;
+  cloud.height = height;
+  cloud.row_step = width * cloud.point_step;
+  cloud.is_dense = false;
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+  for (uint32_t i = 0; i < width * height; ++i, ++x, ++y, ++z) {
+    const Eigen::Vector3f p = point(i);
+    *x = p.x();
+    *y = p.y();
+    *z = p.z();
+  }
+  return cloud;
+}
+
+std::vector<BadCloud> badClouds() {
+  const auto scatter = [](uint32_t i) {  // a 1 m cube of points: no plane anywhere
+    return Eigen::Vector3f(std::fmod(i * 0.6180339f, 1.0f) - 0.5f,
+                           std::fmod(i * 0.7548776f, 1.0f) - 0.5f,
+                           1.0f + std::fmod(i * 0.5698403f, 1.0f));
+  };
+  using Log = rosgraph_msgs::Log;
+  std::vector<BadCloud> clouds;
+  sensor_msgs::PointCloud2 no_z = xyzCloud(40, 30, scatter);
+  no_z.fields.pop_back();
+  clouds.push_back({"no z field", no_z, {"skipping input cloud: no field 'z'"}, Log::ERROR});
+  sensor_msgs::PointCloud2 double_x = xyzCloud(40, 30, scatter);
+  double_x.fields[0].datatype = sensor_msgs::PointField::FLOAT64;
+  clouds.push_back(
+      {"x as float64", double_x, {"skipping input cloud: field 'x' is not FLOAT32"}, Log::ERROR});
+  sensor_msgs::PointCloud2 truncated = xyzCloud(40, 30, scatter);
+  truncated.data.resize(truncated.data.size() / 2);
+  clouds.push_back(
+      {"data cut in half", truncated, {"skipping input cloud: data shorter"}, Log::ERROR});
+  clouds.push_back({"empty",
+                    xyzCloud(0, 1, scatter),
+                    {"input cloud is empty", "no table in the frame: empty cloud"},
+                    Log::WARN});
+  clouds.push_back({"all NaN",
+                    xyzCloud(64, 48, [](uint32_t) { return Eigen::Vector3f::Constant(NAN); }),
+                    {"none of the 3072 input points is finite"},
+                    Log::WARN});
+  clouds.push_back(
+      {"no table", xyzCloud(100, 100, scatter), {"no table in the frame: no plane"}, Log::WARN});
+  return clouds;
+}
+
+// Bad input between good frames: every bad cloud gets its clear message (at once, even right
+// after a different problem) and a count in /diagnostics, a repeated problem is throttled,
+// nothing crashes, and the good frames after them still give the objects.
+TEST_F(PipelineTest, BadInputIsReportedAndThePipelineKeepsRunning) {
+  const double timeout = privateParam("timeout", 40.0);
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, timeout)) << "no objects at all";
+  ros::NodeHandle node;
+  ros::Publisher input =
+      node.advertise<sensor_msgs::PointCloud2>("/camera/depth_registered/points", 10);
+  ASSERT_TRUE(waitFor([&] { return input.getNumSubscribers() > 0; }, 10.0));
+  // Each bad cloud is sent every 0.5 s until its message appears: the stages keep only the
+  // newest frame (queue_size 1), so under load a single one may be replaced by a good frame.
+  const std::vector<BadCloud> clouds = badClouds();
+  for (BadCloud cloud : clouds) {
+    SCOPED_TRACE(cloud.what);
+    ros::WallTime next_send;
+    EXPECT_TRUE(waitFor(
+        [&] {
+          if (ros::WallTime::now() >= next_send) {
+            cloud.cloud.header.stamp = ros::Time::now();
+            input.publish(cloud.cloud);
+            next_send = ros::WallTime::now() + ros::WallDuration(0.5);
+          }
+          return std::all_of(
+              cloud.messages.begin(), cloud.messages.end(),
+              [&](const std::string& message) { return logsContaining(message, cloud.level); });
+        },
+        15.0))
+        << "log lines containing \"" << cloud.messages.front() << "\" (and the others)";
+  }
+  EXPECT_TRUE(waitFor([&] { return diagnostic("preprocess", "frames skipped") >= 3; }, 5.0))
+      << "the 3 unreadable clouds are counted as skipped by preprocess";
+  EXPECT_TRUE(
+      waitFor([&] { return diagnostic("table_segmentation", "frames without result") >= 2; }, 5.0))
+      << "the empty and the table-less clouds are counted as frames without a table";
+  EXPECT_TRUE(waitFor([&] { return diagnostic("preprocess", "frames without result") >= 2; }, 5.0))
+      << "the empty and the all-NaN clouds are counted as frames without points by preprocess";
+  // Throttled: a problem repeated at 10 Hz is logged once, not 20 times.
+  const int before = logsContaining("no field 'z'", rosgraph_msgs::Log::ERROR);
+  for (int i = 0; i < 20; ++i) {
+    input.publish(clouds[0].cloud);
+    ros::WallDuration(0.1).sleep();
+  }
+  ros::WallDuration(1.0).sleep();
+  EXPECT_LE(logsContaining("no field 'z'", rosgraph_msgs::Log::ERROR) - before, 1);
+  // And the good frames still come through.
+  const size_t received = objectsReceived();
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= received + 2; }, timeout))
+      << "objects after the bad input";
+  EXPECT_EQ(objectCount(*objectsAt(objectsReceived() - 1)),
+            static_cast<size_t>(privateParam("expected_objects", 4)));
 }
 
 }  // namespace

@@ -31,6 +31,8 @@ class StageMonitor {
   void frameDone(double milliseconds, size_t points_in, size_t points_out);
   // A frame dropped without output (missing transform, invalid cloud), with the reason.
   void frameSkipped(const std::string& reason);
+  // A frame processed, but with nothing found (no table), with the reason; call frameDone too.
+  void frameWithoutResult(const std::string& reason);
 
  private:
   void publish(const ros::SteadyTimerEvent&);
@@ -40,13 +42,28 @@ class StageMonitor {
   ros::SteadyTimer timer_;
   std::mutex mutex_;
   // totals
-  uint64_t frames_ = 0, skipped_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
+  uint64_t frames_ = 0, skipped_ = 0, without_result_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
   double last_ms_ = 0.0;
   size_t last_points_in_ = 0, last_points_out_ = 0;
-  std::string last_skip_reason_;
+  std::string last_skip_reason_, last_no_result_reason_;
   // since the last report
-  uint64_t window_frames_ = 0, window_skipped_ = 0;
+  uint64_t window_frames_ = 0, window_skipped_ = 0, window_without_result_ = 0;
   double window_sum_ms_ = 0.0, window_max_ms_ = 0.0;
+};
+
+// Throttling by reason: a problem is logged at once when it differs from the last one logged,
+// and at most once per period while it repeats. ROS's *_THROTTLE macros throttle per call
+// site, which would hide a second, different problem behind the first.
+class ReasonThrottle {
+ public:
+  explicit ReasonThrottle(double period_seconds) : period_(period_seconds) {}
+  bool shouldLog(const std::string& reason);
+
+ private:
+  double period_;
+  std::string last_reason_;
+  std::chrono::steady_clock::time_point last_time_;
+  std::mutex mutex_;
 };
 
 // Wall-clock stopwatch in milliseconds.
