@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace tabletop_shapes {
@@ -35,6 +36,9 @@ void backProject(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
 template <typename PointT>
 void resizeOrganised(const PinholeIntrinsics& intrinsics, pcl::PointCloud<PointT>& cloud) {
   cloud.resize(static_cast<size_t>(intrinsics.width) * static_cast<size_t>(intrinsics.height));
+  // PCL points have padding that their constructors leave uninitialised, and pcl_ros sends
+  // whole points: zeroed, a published cloud carries no stale heap bytes (valgrind was right).
+  std::memset(static_cast<void*>(cloud.points.data()), 0, cloud.size() * sizeof(PointT));
   cloud.width = static_cast<uint32_t>(intrinsics.width);
   cloud.height = static_cast<uint32_t>(intrinsics.height);
   cloud.is_dense = false;
@@ -78,6 +82,7 @@ void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
     p.x = valid ? x : nan;
     p.y = valid ? y : nan;
     p.z = valid ? z : nan;
+    p.data[3] = 1.0f;  // PCL's homogeneous coordinate
   });
 }
 
@@ -91,6 +96,7 @@ void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
     p.x = valid ? x : nan;
     p.y = valid ? y : nan;
     p.z = valid ? z : nan;
+    p.data[3] = 1.0f;  // PCL's homogeneous coordinate
     p.a = 255;
     if (!rgb) {
       p.r = p.g = p.b = 255;

@@ -1,7 +1,7 @@
 // benchmark_accuracy: the paper's Tables 2-3 and Fig. 12 on rendered Kinect scenes, plus
 // segmentation scores on real labelled OSD scenes.
 //   benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S] [--up auto]
-//                      [--osd DIR] [--out DIR] [--no-plots]
+//                      [--osd DIR] [--out DIR] [--no-plots] [--verbose] [--save-failures DIR]
 #include "tabletop_shapes/core/pipeline.h"
 #include "tabletop_shapes/sim/evaluation.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
@@ -32,6 +32,9 @@ struct Options {
   std::string out_dir = "benchmark-output";
   bool plots = true;
   bool verbose = false;  // per scene: every true object and every detection
+  // Scenes with a missed object or a false positive: <dir>/scene_<seed>.pcd + .json, to be
+  // looked at with estimate_shapes --verbose.
+  std::string failures_dir;
 };
 
 // The paper's Tables 2-3: relative error [%] per object and measure.
@@ -142,8 +145,17 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
   const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.06);
   std::vector<int> detection_of(scene.objects.size(), -1);
   for (const Match& m : matches) detection_of[m.truth] = m.detection;
-  tally.false_positives += static_cast<int>(result.objects.size() - matches.size());
+  const int false_positives = static_cast<int>(result.objects.size() - matches.size());
+  tally.false_positives += false_positives;
   if (options.verbose) printScene(scene, result, matches);
+  const bool missed = std::count(detection_of.begin(), detection_of.end(), -1) > 0;
+  if (!options.failures_dir.empty() && (missed || false_positives > 0)) {
+    const std::string prefix =
+        (fs::path(options.failures_dir) / ("scene_" + std::to_string(spec.seed))).string();
+    if (!writePcd(scene, prefix + ".pcd") || !writeGroundTruthJson(scene, prefix + ".json")) {
+      std::fprintf(stderr, "benchmark_accuracy: cannot write %s.pcd/.json\n", prefix.c_str());
+    }
+  }
   for (size_t t = 0; t < scene.objects.size(); ++t) {
     const GroundTruthObject& truth = scene.objects[t];
     Sample sample;
@@ -387,10 +399,13 @@ Options parse(int argc, char** argv) {
       options.plots = false;
     else if (arg == "--verbose")
       options.verbose = true;
+    else if (arg == "--save-failures")
+      options.failures_dir = value();
     else {
       std::fprintf(stderr,
                    "usage: benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S]"
-                   " [--up auto] [--osd DIR] [--out DIR] [--no-plots]\n");
+                   " [--up auto] [--osd DIR] [--out DIR] [--no-plots] [--verbose]"
+                   " [--save-failures DIR]\n");
       std::exit(2);
     }
   }
@@ -402,6 +417,7 @@ Options parse(int argc, char** argv) {
 int main(int argc, char** argv) {
   const Options options = parse(argc, argv);
   fs::create_directories(options.out_dir);
+  if (!options.failures_dir.empty()) fs::create_directories(options.failures_dir);
   std::mt19937 rng(options.seed);
   Tally tally;
   const int total = options.paper_scenes + options.random_scenes;
