@@ -30,7 +30,8 @@ constexpr double kRansacConfidence = 0.99;
 constexpr float kObjectTopAreaFraction = 0.25f;
 // Support candidates are within this angle of the dominant plane's normal (cos 4 deg).
 constexpr float kParallelCosine = 0.99756f;
-// Points this far below a candidate, this far inside its hull, mean it is not a surface [m].
+// Points this far below a candidate, seen through it this far inside its hull, mean it is not
+// a surface [m].
 constexpr float kBelowSupportDepth = 0.10f;
 constexpr float kBelowSupportInset = 0.01f;
 // estimateUp: a support plane's normal, oriented towards the camera, points up in the image
@@ -255,18 +256,28 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
   return candidates;
 }
 
-// A support surface hides what lies just beneath it, inside its hull, from the camera. A
+// A support surface hides what lies just beneath it from the camera: a point below it whose
+// line of sight crosses the candidate well inside its hull would have been occluded by it. A
 // horizontal slice through several objects (a box top plus rings of the other objects' walls
-// within the inlier distance: seen on rendered scenes with 600-2000 inliers) has the lower
-// parts of those objects right below it.
+// within the inlier distance: seen on rendered scenes with 600-2000 inliers) shows the lower
+// parts of those objects through itself. Testing the line of sight, not the point's own place
+// under the hull, keeps a real table: the flying pixels and the floor seen just past its near
+// edge lie under its hull, but their lines of sight pass outside it (at 1.5 m this rejected
+// the table for the floor). The viewpoint is the cloud's sensor origin (the camera frame's
+// origin unless the cloud says otherwise).
 bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableParams& params) {
   if (candidate.hull_2d.size() < 3) return false;
+  const Eigen::Vector3f eye = cloud.sensor_origin_.head<3>();
+  const float eye_height = candidate.plane.signedDistance(eye);
+  if (!(eye_height > 0.0f)) return false;  // seen from below: nothing to hide
   int below = 0;
   for (const auto& point : cloud.points) {
     const Eigen::Vector3f p = point.getVector3fMap();
     const float depth = -candidate.plane.signedDistance(p);
     if (!(depth > 2 * params.distance_threshold && depth < kBelowSupportDepth)) continue;
-    const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+    // Where the line of sight eye -> p crosses the plane.
+    const Eigen::Vector3f crossing = eye + (p - eye) * (eye_height / (eye_height + depth));
+    const Eigen::Vector2f q(candidate.u.dot(crossing), candidate.v.dot(crossing));
     if (insideDistance(candidate.hull_2d, q) > kBelowSupportInset &&
         ++below >= kMinSupportedPoints) {
       return true;
