@@ -1,6 +1,8 @@
 // §2.5 Euclidean cluster extraction with a k-d tree.
 #include "tabletop_shapes/core/clustering.h"
 
+#include "tabletop_shapes/core/cluster_split.h"
+
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/extract_clusters.h>
 
@@ -8,7 +10,8 @@
 
 namespace tabletop_shapes {
 
-std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const ClusteringParams& params) {
+std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const ClusteringParams& params,
+                                      const Plane* table) {
   std::vector<CloudPtr> clusters;
   if (!cloud || cloud->empty() || !(params.tolerance > 0.0f)) return clusters;
   // The k-d tree needs finite points; the stages before hand over dense clouds, but be safe.
@@ -35,19 +38,20 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
   extraction.setInputCloud(input);
   extraction.extract(cluster_indices);
 
-  std::stable_sort(cluster_indices.begin(), cluster_indices.end(),
-                   [](const pcl::PointIndices& a, const pcl::PointIndices& b) {
-                     return a.indices.size() > b.indices.size();
-                   });
-  clusters.reserve(cluster_indices.size());
   for (const auto& indices : cluster_indices) {
-    auto cluster = std::make_shared<Cloud>();
+    auto cluster = std::make_shared<Cloud>(*input, indices.indices);
     cluster->header = input->header;
-    cluster->reserve(indices.indices.size());
-    for (int i : indices.indices) cluster->push_back((*input)[i]);
     cluster->is_dense = true;
-    clusters.push_back(cluster);
+    if (!table) {
+      clusters.push_back(cluster);
+      continue;
+    }
+    for (const CloudPtr& part : splitAtConcaveSeams(cluster, *table, params)) {
+      clusters.push_back(part);
+    }
   }
+  std::stable_sort(clusters.begin(), clusters.end(),
+                   [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });
   return clusters;
 }
 

@@ -61,6 +61,12 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
           "clusters with fewer points are ignored (§2.5)");
   integer("clustering", "max_size", cluster.max_size, 1, 10000000,
           "clusters with more points are ignored");
+  real("clustering", "split_concavity_deg", cluster.split_concavity_deg, 0.0, 90.0,
+       "clusters split at concave seams sharper than this (stacked objects) [deg]; 0 disables");
+  real("clustering", "split_patch_size", cluster.split_patch_size, 0.005, 0.2,
+       "surface patch spacing of the concave-seam split [m]");
+  integer("clustering", "split_min_points", cluster.split_min_points, 1, 10000000,
+          "split parts with fewer points rejoin their neighbour");
 
   auto& shapes = p.shapes;
   real("normals", "search_radius", shapes.normals.search_radius, 0.002, 0.2,

@@ -52,7 +52,8 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
 
   if (result.table.found && result.table.object_points) {
     stage = Clock::now();
-    result.clusters = extractClusters(result.table.object_points, params_.clustering);
+    result.clusters =
+        extractClusters(result.table.object_points, params_.clustering, &result.table.plane);
     result.times.clustering_ms = msSince(stage);
 
     stage = Clock::now();

@@ -6,6 +6,8 @@
 namespace tabletop_shapes {
 
 // Clusters sorted by size, largest first; each is a new dense cloud with the input's header.
-std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const ClusteringParams& params);
+// Given the table, clusters holding stacked objects are split (cluster_split.h).
+std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const ClusteringParams& params,
+                                      const Plane* table = nullptr);
 
 }  // namespace tabletop_shapes

@@ -62,6 +62,10 @@ struct ClusteringParams {
   float tolerance = 0.02f;  // d_th [m]
   int min_size = 100;
   int max_size = 200000;
+  // Splitting clusters at concave seams (touching / stacked objects); 0 disables it.
+  float split_concavity_deg = 10.0f;  // concave seams flatter than this do not split [deg]
+  float split_patch_size = 0.025f;    // surface patch (supervoxel seed) spacing [m]
+  int split_min_points = 150;         // smaller parts rejoin their neighbour
 };
 
 // §3: normals by moving least squares

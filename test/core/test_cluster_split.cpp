@@ -1,0 +1,169 @@
+// Concave-seam split (beyond the paper): known answers on synthetic objects seen from one camera.
+// Stacked objects come apart; single boxes, cylinders, cones and a cup with its inside do not.
+#include "tabletop_shapes/core/cluster_split.h"
+
+#include "tabletop_shapes/core/clustering.h"
+#include "synthetic.h"
+
+#include <gtest/gtest.h>
+
+namespace tabletop_shapes {
+namespace {
+
+synthetic::Sampler sampler() {
+  synthetic::Sampler s;
+  s.spacing = 0.005f;  // the preprocessing voxel grid
+  s.noise_sigma = 0.001f;
+  return s;
+}
+
+// Lifts a table-frame object by `dz` (stacked on something of that height).
+CloudPtr lifted(const CloudPtr& cloud, float dz) {
+  auto out = std::make_shared<Cloud>(*cloud);
+  for (auto& p : out->points) p.z += dz;
+  return out;
+}
+
+// Points of `cloud` not covered by a footprint [x0, x1] x [y0, y1] at height z (the lower
+// object's top under a stacked one).
+CloudPtr withoutFootprint(const CloudPtr& cloud, float x0, float x1, float y0, float y1, float z) {
+  auto out = std::make_shared<Cloud>();
+  for (const auto& p : *cloud) {
+    const bool covered = p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1 && p.z > z - 0.002f;
+    if (!covered) out->push_back(p);
+  }
+  return out;
+}
+
+// Moves the table frame into a camera frame (camera at the origin, as the core assumes).
+std::vector<CloudPtr> split(Cloud scene) {
+  const synthetic::Sampler s = sampler();
+  Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
+  const Eigen::Vector3f forward = (-s.camera).normalized();
+  const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
+  const Eigen::Vector3f down = forward.cross(right);
+  camera_from_table.linear().row(0) = right;
+  camera_from_table.linear().row(1) = down;
+  camera_from_table.linear().row(2) = forward;
+  camera_from_table.translation() = -(camera_from_table.linear() * s.camera);
+  synthetic::transformCloud(camera_from_table, scene);
+  const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
+  auto cloud = std::make_shared<Cloud>(scene);
+  cloud->width = static_cast<uint32_t>(cloud->size());
+  cloud->height = 1;
+  // One Euclidean cluster first, as the pipeline hands it over.
+  const std::vector<CloudPtr> clusters = extractClusters(cloud, ClusteringParams());
+  EXPECT_EQ(clusters.size(), 1u);
+  return splitAtConcaveSeams(clusters.at(0), table, ClusteringParams());
+}
+
+// As many parts as objects, each the size of one of them; sizes add up.
+void expectPartsMatch(const std::vector<CloudPtr>& parts, const std::vector<CloudPtr>& objects) {
+  ASSERT_EQ(parts.size(), objects.size());
+  size_t total = 0, objects_total = 0;
+  for (const auto& p : parts) total += p->size();
+  for (const auto& o : objects) objects_total += o->size();
+  EXPECT_NEAR(total, objects_total, 0.01 * objects_total);  // a few stray points may drop
+  for (const auto& part : parts) {
+    // The part's size is within 10 % of one object's size.
+    bool matched = false;
+    for (const auto& object : objects) {
+      matched |=
+          std::abs(static_cast<float>(part->size()) - object->size()) < 0.1f * object->size();
+    }
+    EXPECT_TRUE(matched) << "part of " << part->size() << " points";
+  }
+}
+
+TEST(ClusterSplit, BoxStackedOnABox) {
+  const CloudPtr lower = synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, sampler());
+  const CloudPtr upper =
+      lifted(synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, sampler()), 0.06f);
+  const CloudPtr lower_visible = withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
+  Cloud scene = *lower_visible;
+  scene += *upper;
+  expectPartsMatch(split(scene), {lower_visible, upper});
+}
+
+TEST(ClusterSplit, CylinderStandingOnARoundTin) {
+  const CloudPtr tin = synthetic::roundObject(0.10f, 0.10f, 0.05f, {0.0f, 0.0f}, sampler());
+  const CloudPtr can =
+      lifted(synthetic::roundObject(0.035f, 0.035f, 0.09f, {0.0f, 0.0f}, sampler()), 0.05f);
+  auto tin_visible = std::make_shared<Cloud>();
+  for (const auto& p : *tin) {
+    if (std::hypot(p.x, p.y) > 0.036f || p.z < 0.049f) tin_visible->push_back(p);
+  }
+  Cloud scene = *tin_visible;
+  scene += *can;
+  expectPartsMatch(split(scene), {tin_visible, can});
+}
+
+TEST(ClusterSplit, SingleObjectsStayWhole) {
+  const CloudPtr objects[] = {
+      synthetic::box({0.20f, 0.10f, 0.12f}, {0.0f, 0.0f}, 0.4f, sampler()),
+      synthetic::box({0.06f, 0.06f, 0.05f}, {0.0f, 0.0f}, 0.0f, sampler()),
+      synthetic::roundObject(0.04f, 0.04f, 0.16f, {0.0f, 0.0f}, sampler()),
+      synthetic::roundObject(0.05f, 0.03f, 0.12f, {0.0f, 0.0f}, sampler()),  // cone
+  };
+  for (const CloudPtr& object : objects) {
+    const std::vector<CloudPtr> parts = split(*object);
+    ASSERT_EQ(parts.size(), 1u) << object->size() << " points";
+    EXPECT_EQ(parts[0]->size(), object->size());
+  }
+}
+
+TEST(ClusterSplit, OpenCupWithHandleStaysWhole) {
+  // Outer wall, the inside seen through the opening (concave seam at its bottom) and a handle.
+  const float r = 0.04f, h = 0.10f, wall = 0.004f;
+  const synthetic::Sampler s = sampler();
+  std::mt19937 rng(3);
+  Cloud cup;
+  const CloudPtr outer = synthetic::roundObject(r, r, h, {0.0f, 0.0f}, s);
+  for (const auto& p : *outer) {
+    if (p.z < h - 1e-4f || std::hypot(p.x, p.y) > r - wall) cup.push_back(p);  // no lid
+  }
+  // The inside wall, where the line of sight passes over the rim (the bottom inside is hidden).
+  const float inner = r - wall;
+  auto seenOverRim = [&](const Eigen::Vector3f& p) {
+    for (float step = 0.002f; step < 1.0f; step += 0.002f) {
+      const Eigen::Vector3f q = p + step * (s.camera - p).normalized();
+      if (q.z() >= h) return true;
+      if (q.head<2>().norm() > inner) return false;
+    }
+    return false;
+  };
+  for (float z = 0.01f; z <= h; z += s.spacing) {
+    for (float t = 0.0f; t < 2 * kPi; t += s.spacing / inner) {
+      const Eigen::Vector3f p(inner * std::cos(t), inner * std::sin(t), z);
+      if (seenOverRim(p))
+        synthetic::addIfVisible(p, {-std::cos(t), -std::sin(t), 0.0f}, s, rng, cup);
+    }
+  }
+  for (float t = 0.0f; t < kPi; t += 0.05f) {  // handle: a half ring on the side
+    for (float u = 0.0f; u < 2 * kPi; u += 0.6f) {
+      const Eigen::Vector3f centre(r + 0.02f * std::sin(t), 0.0f, 0.05f + 0.03f * std::cos(t));
+      const Eigen::Vector3f n(std::sin(t) * std::cos(u), std::sin(u), std::cos(t) * std::cos(u));
+      synthetic::addIfVisible(centre + 0.006f * n, n, s, rng, cup);
+    }
+  }
+  const size_t size = cup.size();
+  const std::vector<CloudPtr> parts = split(cup);
+  ASSERT_EQ(parts.size(), 1u);
+  EXPECT_EQ(parts[0]->size(), size);
+}
+
+TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
+  const CloudPtr lower = synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, sampler());
+  auto scene =
+      std::make_shared<Cloud>(*withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f));
+  *scene += *lifted(synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, sampler()), 0.06f);
+  ClusteringParams off;
+  off.split_concavity_deg = 0.0f;
+  const Plane table = synthetic::tablePlane();
+  EXPECT_EQ(splitAtConcaveSeams(scene, table, off).size(), 1u);
+  EXPECT_EQ(extractClusters(scene, ClusteringParams()).size(), 1u);  // no table given
+  EXPECT_EQ(splitAtConcaveSeams(CloudPtr(), table, ClusteringParams()).size(), 1u);
+}
+
+}  // namespace
+}  // namespace tabletop_shapes
