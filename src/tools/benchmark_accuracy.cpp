@@ -2,6 +2,8 @@
 // segmentation scores on real labelled OSD scenes.
 //   benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S] [--up auto]
 //                      [--osd DIR] [--out DIR] [--no-plots] [--verbose] [--save-failures DIR]
+//                      [--set stage.name=value ...]   (parameters as in estimate_shapes)
+#include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
 #include "tabletop_shapes/sim/evaluation.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
@@ -35,6 +37,7 @@ struct Options {
   // Scenes with a missed object or a false positive: <dir>/scene_<seed>.pcd + .json, to be
   // looked at with estimate_shapes --verbose.
   std::string failures_dir;
+  PipelineParams params;  // defaults, changed by --set stage.name=value
 };
 
 // The paper's Tables 2-3: relative error [%] per object and measure.
@@ -58,6 +61,25 @@ struct Sample {
   std::vector<Measure> measures;
   double volume_estimate = 0.0, volume_truth = 0.0;
 };
+
+// "stage.name=value" (names as in `estimate_shapes --parameters`); exits 2 when invalid.
+void setFromText(const std::string& text, PipelineParams& params) {
+  const size_t dot = text.find('.'), equals = text.find('=');
+  std::string error = "expected stage.name=value";
+  if (dot != std::string::npos && equals != std::string::npos && dot < equals) {
+    try {
+      error.clear();  // setParameter reports through it
+      if (setParameter(params, text.substr(0, dot), text.substr(dot + 1, equals - dot - 1),
+                       std::stod(text.substr(equals + 1)), error)) {
+        return;
+      }
+    } catch (const std::exception&) {
+      error = "the value is not a number";
+    }
+  }
+  std::fprintf(stderr, "benchmark_accuracy: --set %s: %s\n", text.c_str(), error.c_str());
+  std::exit(2);
+}
 
 void progress(int done, int total) {
   const int width = 40, filled = total ? done * width / total : width;
@@ -134,7 +156,7 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
 
 void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
   const RenderedScene scene = renderScene(spec);
-  PipelineParams params;
+  PipelineParams params = options.params;
   params.auto_up = options.auto_up;
   params.table.up = scene.up;  // what tf2 would give a robot
   Pipeline pipeline(params);
@@ -354,7 +376,7 @@ void runOsd(const Options& options) {
     if (pcl::io::loadPCDFile(file.string(), cloud) < 0) continue;
     pcl::PointCloud<pcl::PointXYZ> xyz;
     pcl::copyPointCloud(cloud, xyz);
-    PipelineParams params;
+    PipelineParams params = options.params;
     params.auto_up = true;
     Pipeline pipeline(params);
     const SceneResult result = pipeline.process(xyz);
@@ -401,11 +423,13 @@ Options parse(int argc, char** argv) {
       options.verbose = true;
     else if (arg == "--save-failures")
       options.failures_dir = value();
+    else if (arg == "--set")
+      setFromText(value(), options.params);
     else {
       std::fprintf(stderr,
                    "usage: benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S]"
                    " [--up auto] [--osd DIR] [--out DIR] [--no-plots] [--verbose]"
-                   " [--save-failures DIR]\n");
+                   " [--save-failures DIR] [--set stage.name=value ...]\n");
       std::exit(2);
     }
   }
