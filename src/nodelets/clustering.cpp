@@ -1,16 +1,21 @@
-// tabletop_shapes/Clustering (paper 2.5): Euclidean clusters of the points above the table.
-// Subscribes: objects_cloud (pcl::PointCloud<pcl::PointXYZ>)
+// tabletop_shapes/Clustering (paper 2.5): Euclidean clusters of the points above the table,
+// split where objects stand on each other (concave seams; needs the table plane).
+// Subscribes: table (tabletop_shapes/Table) and objects_cloud (pcl::PointCloud<pcl::PointXYZ>),
+//   paired by their identical stamps (exact time), as TableSegmentation publishes them
 // Publishes, once per frame with the input's header:
 //   clusters (pcl::PointCloud<pcl::PointXYZL>): every clustered point, label = cluster index,
 //     largest cluster first (label 0); empty when there is none
 //   clusters_colored (pcl::PointCloud<pcl::PointXYZRGB>), only while someone subscribes
 // Parameters: cfg/Clustering.cfg (dynamic_reconfigure); ~queue_size (int, 5).
 #include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/ClusteringConfig.h"
 
 #include <dynamic_reconfigure/server.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/time_synchronizer.h>
 #include <nodelet/nodelet.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -45,10 +50,15 @@ class ClusteringNodelet : public nodelet::Nodelet {
     clusters_publisher_ = node.advertise<LabeledCloud>("clusters", 5);
     colored_publisher_ = node.advertise<ColoredCloud>("clusters_colored", 1);
     const int queue_size = private_node.param("queue_size", 5);
-    subscriber_ = node.subscribe("objects_cloud", queue_size, &ClusteringNodelet::onCloud, this);
+    table_subscriber_.subscribe(node, "table", queue_size);
+    cloud_subscriber_.subscribe(node, "objects_cloud", queue_size);
+    synchronizer_ = std::make_unique<message_filters::TimeSynchronizer<Table, Cloud>>(
+        table_subscriber_, cloud_subscriber_, 2 * queue_size);
+    synchronizer_->registerCallback(boost::bind(&ClusteringNodelet::onFrame, this,
+                                                boost::placeholders::_1, boost::placeholders::_2));
   }
 
-  void onCloud(const boost::shared_ptr<const Cloud>& cloud) {
+  void onFrame(const TableConstPtr& table, const boost::shared_ptr<const Cloud>& cloud) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(cloud.get());
     ClusteringParams params;
@@ -56,7 +66,10 @@ class ClusteringNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(params_mutex_);
       params = params_;
     }
-    const std::vector<CloudPtr> clusters = extractClusters(pcl::pcl_ptr(cloud), params);
+    // Without a table there are no object points; the plane only enables the split.
+    const Plane plane = bridge::planeFromMsg(*table);
+    const std::vector<CloudPtr> clusters =
+        extractClusters(pcl::pcl_ptr(cloud), params, bridge::tableFound(*table) ? &plane : nullptr);
 
     auto labeled = boost::make_shared<LabeledCloud>();
     labeled->header = cloud->header;
@@ -100,7 +113,9 @@ class ClusteringNodelet : public nodelet::Nodelet {
   std::mutex params_mutex_;
   ClusteringParams params_;
   ros::Publisher clusters_publisher_, colored_publisher_;
-  ros::Subscriber subscriber_;
+  message_filters::Subscriber<Table> table_subscriber_;
+  message_filters::Subscriber<Cloud> cloud_subscriber_;
+  std::unique_ptr<message_filters::TimeSynchronizer<Table, Cloud>> synchronizer_;
 };
 
 }  // namespace tabletop_shapes
