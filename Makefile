@@ -25,12 +25,14 @@ build: deps
 	@if [ ! -f $(BUILD_DIR)/CMakeCache.txt ]; then cmake -S . -B $$(realpath $(BUILD_DIR)) $(CMAKE_ARGS); fi
 	cmake --build $(BUILD_DIR) -- -j$(JOBS)
 
-# Installs everything a user needs into PREFIX (default install/ here): the core and nodelet
+# Installs everything a user needs into PREFIX (default .install/ here): the core and nodelet
 # libraries, nodelet_plugins.xml, package.xml, launch/, cfg/, rviz/, the messages and the
 # command-line tools; `source $(PREFIX)/setup.bash` then makes rosrun / roslaunch use them.
-# catkin writes the prefix into the generated setup files when configuring, so a new PREFIX
-# reconfigures the build (nothing is recompiled).
-PREFIX ?= install
+# The default is hidden because roslaunch searches the source package (the repository root)
+# for launch files, skipping only hidden folders: an install/ here would give each launch file
+# twice. catkin writes the prefix into the generated setup files when configuring, so a new
+# PREFIX reconfigures the build (nothing is recompiled).
+PREFIX ?= .install
 install: build
 	@prefix=$$(realpath -m $(PREFIX)); \
 	if ! grep -qx "CMAKE_INSTALL_PREFIX:PATH=$$prefix" $(BUILD_DIR)/CMakeCache.txt; then \

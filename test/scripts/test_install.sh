@@ -13,8 +13,8 @@ tmp=$(mktemp -d)
 prefix="$tmp/prefix"
 launch_pid=""
 cleanup() {
-  if [ -n "$launch_pid" ]; then
-    kill -TERM "$launch_pid" 2>/dev/null
+  if [ -n "$launch_pid" ]; then  # roslaunch itself (not the shell around it) stops its nodes
+    kill -TERM "$(cat "$tmp/roslaunch.pid" 2>/dev/null)" "$launch_pid" 2>/dev/null
     wait "$launch_pid" 2>/dev/null
   fi
   rm -rf "$tmp"
@@ -70,7 +70,7 @@ check "installed estimate_shapes finds the boxes of learn0.pcd" \
 # does not install.)
 port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])')
 master="ROS_MASTER_URI=http://localhost:$port"
-in_prefix "$master PYTHONUNBUFFERED=1 exec roslaunch -p $port tabletop_shapes pipeline.launch" >"$tmp/launch.log" 2>&1 &
+in_prefix "$master PYTHONUNBUFFERED=1 exec roslaunch -p $port --pid=$tmp/roslaunch.pid tabletop_shapes pipeline.launch" >"$tmp/launch.log" 2>&1 &
 launch_pid=$!
 manager=/tabletop_shapes/tabletop_shapes_manager
 info=""
