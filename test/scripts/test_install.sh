@@ -12,11 +12,14 @@ build="${2:?usage: test_install.sh SOURCE_DIR BUILD_DIR}"
 tmp=$(mktemp -d)
 prefix="$tmp/prefix"
 launch_pid=""
+# make install reconfigures the build for the temporary prefix: put the user's prefix back.
+original_prefix=$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$build/CMakeCache.txt")
 cleanup() {
   if [ -n "$launch_pid" ]; then  # roslaunch itself (not the shell around it) stops its nodes
     kill -TERM "$(cat "$tmp/roslaunch.pid" 2>/dev/null)" "$launch_pid" 2>/dev/null
     wait "$launch_pid" 2>/dev/null
   fi
+  cmake "$build" -DCMAKE_INSTALL_PREFIX="$original_prefix" >/dev/null 2>&1
   rm -rf "$tmp"
 }
 trap cleanup EXIT
@@ -33,6 +36,7 @@ echo "PASS: make install PREFIX=$prefix ($(find "$prefix" -type f | wc -l) files
 
 # Everything below runs with only the prefix's setup.bash sourced.
 in_prefix() {
+  # shellcheck disable=SC2016  # expanded by the inner bash
   env -i HOME="$tmp" PATH=/usr/bin:/bin ROS_HOME="$tmp/ros" ROS_LOG_DIR="$tmp/log" \
     bash -c 'set +u; source "$0/setup.bash" >/dev/null; set -u; eval "$1"' "$prefix" "$1"
 }
