@@ -12,7 +12,7 @@ JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
               -DCATKIN_ENABLE_TESTING=ON
 
-.PHONY: deps build test demo benchmark-accuracy format clean
+.PHONY: deps build install test demo benchmark-accuracy format clean
 
 deps:
 	@scripts/install-deps
@@ -24,6 +24,22 @@ build: deps
 	  mkdir -p $(REAL_BUILD_DIR) && ln -s $(REAL_BUILD_DIR) build; fi
 	@if [ ! -f $(BUILD_DIR)/CMakeCache.txt ]; then cmake -S . -B $$(realpath $(BUILD_DIR)) $(CMAKE_ARGS); fi
 	cmake --build $(BUILD_DIR) -- -j$(JOBS)
+
+# Installs everything a user needs into PREFIX (default .install/ here): the core and nodelet
+# libraries, nodelet_plugins.xml, package.xml, launch/, cfg/, rviz/, the messages and the
+# command-line tools; `source $(PREFIX)/setup.bash` then makes rosrun / roslaunch use them.
+# The default is hidden because roslaunch searches the source package (the repository root)
+# for launch files, skipping only hidden folders: an install/ here would give each launch file
+# twice. catkin writes the prefix into the generated setup files when configuring, so a new
+# PREFIX reconfigures the build (nothing is recompiled).
+PREFIX ?= .install
+install: build
+	@prefix=$$(realpath -m $(PREFIX)); \
+	if ! grep -qx "CMAKE_INSTALL_PREFIX:PATH=$$prefix" $(BUILD_DIR)/CMakeCache.txt; then \
+	  cmake $$(realpath $(BUILD_DIR)) -DCMAKE_INSTALL_PREFIX=$$prefix >/dev/null; fi
+	cmake --install $(BUILD_DIR) >/dev/null
+	@echo "installed $$(wc -l <$(BUILD_DIR)/install_manifest.txt) files into $$(realpath -m $(PREFIX));" \
+	  "use them with: source $$(realpath -m $(PREFIX))/setup.bash"
 
 # Builds the tests and runs them all through ctest, which exits non-zero on any failure
 # (unlike `catkin_make run_tests`).
