@@ -21,6 +21,20 @@ ShapeFit unknown(const Cloud& cluster, const std::string& reason) {
   return fit;
 }
 
+// A round fit rests on the side-wall points only. Resting on a tenth of the cluster or less it
+// describes a sliver: seen on a box at 0.5 m, a cylinder through 11 of its ~900 points fitted
+// to 1.9 mm, better than the box could. Real cylinders and cones use 30-90 % of their points.
+constexpr float kMinFitFraction = 0.1f;
+
+ShapeFit checkSupport(ShapeFit fit, size_t cluster_size) {
+  if (fit.ok && fit.points < kMinFitFraction * static_cast<float>(cluster_size)) {
+    fit.ok = false;
+    fit.reason = "the " + std::string(shapeTypeName(fit.type)) + " rests on only " +
+                 std::to_string(fit.points) + " of " + std::to_string(cluster_size) + " points";
+  }
+  return fit;
+}
+
 }  // namespace
 
 ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table) const {
@@ -33,8 +47,10 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
 
   const Prediction prediction = predictShape(normals, params_.predictor);
   auto fitAs = [&](ShapeType type) {
-    return type == ShapeType::Cube ? fitCube(normals, table, params_.cube)
-                                   : fitRoundObject(normals, table, params_.cylinder, params_.cone);
+    return checkSupport(type == ShapeType::Cube
+                            ? fitCube(normals, table, params_.cube)
+                            : fitRoundObject(normals, table, params_.cylinder, params_.cone),
+                        normals.size());
   };
   const ShapeType first =
       prediction.guess == ShapeType::Cube ? ShapeType::Cube : ShapeType::Cylinder;
