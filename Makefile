@@ -31,12 +31,15 @@ build: deps
 # The default is hidden because roslaunch searches the source package (the repository root)
 # for launch files, skipping only hidden folders: an install/ here would give each launch file
 # twice. catkin writes the prefix into the generated setup files when configuring, so a new
-# PREFIX reconfigures the build (nothing is recompiled).
+# PREFIX reconfigures the build, then builds again: once, such a reconfigure was seen to leave
+# devel/include/tabletop_shapes/ empty (the generated message and config headers), and the
+# install needs them.
 PREFIX ?= .install
 install: build
 	@prefix=$$(realpath -m $(PREFIX)); \
 	if ! grep -qx "CMAKE_INSTALL_PREFIX:PATH=$$prefix" $(BUILD_DIR)/CMakeCache.txt; then \
-	  cmake $$(realpath $(BUILD_DIR)) -DCMAKE_INSTALL_PREFIX=$$prefix >/dev/null; fi
+	  cmake $$(realpath $(BUILD_DIR)) -DCMAKE_INSTALL_PREFIX=$$prefix >/dev/null; \
+	  cmake --build $(BUILD_DIR) -- -j$(JOBS) >/dev/null; fi
 	cmake --install $(BUILD_DIR) >/dev/null
 	@echo "installed $$(wc -l <$(BUILD_DIR)/install_manifest.txt) files into $$(realpath -m $(PREFIX));" \
 	  "use them with: source $$(realpath -m $(PREFIX))/setup.bash"
