@@ -5,6 +5,7 @@
 // The file is written under a temporary name and renamed, so readers never see half a file
 // (unless --truncate asks for one, to test how a player copes with a damaged recording).
 #include "tabletop_shapes/sim/oni_writer.h"
+#include "tabletop_shapes/sim/scene_options.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
 #include <cmath>
@@ -28,31 +29,24 @@ int usageError(const std::string& what) {
   return 2;
 }
 
-bool parseNumber(const std::string& text, double& value) {
-  char* end = nullptr;
-  value = std::strtod(text.c_str(), &end);
-  return !text.empty() && end && *end == '\0' && std::isfinite(value);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   namespace sim = tabletop_shapes::sim;
-  double seed = 1, objects = 0, frames = 1, fps = 30, truncate = -1;
-  double distance = NAN, tilt = NAN, yaw = NAN;
-  bool paper = false, noiseless = false, repeat = false, qvga = false, color = true, json = false;
-  std::string path;
+  sim::SceneChoice choice;
+  double frames = 1, fps = 30, truncate = -1;
+  bool repeat = false, qvga = false, color = true, json = false;
+  std::string path, usage_error;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    auto number = [&](double& value, double lo, double hi, bool integer) {
-      return i + 1 < argc && parseNumber(argv[++i], value) && value >= lo && value <= hi &&
-             (!integer || value == std::floor(value));
+    const sim::OptionRead read = sim::readSceneOption(argc, argv, i, choice, usage_error);
+    if (read == sim::OptionRead::Invalid) return usageError(usage_error);
+    if (read == sim::OptionRead::Read) continue;
+    auto number = [&](double& value, double lo, double hi) {
+      return i + 1 < argc && sim::parseNumber(argv[++i], value) && value >= lo && value <= hi &&
+             value == std::floor(value);
     };
-    if (arg == "--paper") {
-      paper = true;
-    } else if (arg == "--noiseless") {
-      noiseless = true;
-    } else if (arg == "--repeat") {
+    if (arg == "--repeat") {
       repeat = true;
     } else if (arg == "--qvga") {
       qvga = true;
@@ -60,22 +54,12 @@ int main(int argc, char** argv) {
       color = false;
     } else if (arg == "--json") {
       json = true;
-    } else if (arg == "--seed") {
-      if (!number(seed, 0, 4294967295.0, true)) return usageError("--seed needs 0..2^32-1");
-    } else if (arg == "--objects") {
-      if (!number(objects, 1, 4, true)) return usageError("--objects needs 1..4");
     } else if (arg == "--frames") {
-      if (!number(frames, 1, 1000, true)) return usageError("--frames needs 1..1000");
+      if (!number(frames, 1, 1000)) return usageError("--frames needs 1..1000");
     } else if (arg == "--fps") {
-      if (!number(fps, 1, 120, true)) return usageError("--fps needs 1..120");
+      if (!number(fps, 1, 120)) return usageError("--fps needs 1..120");
     } else if (arg == "--truncate") {
-      if (!number(truncate, 0, 1e12, true)) return usageError("--truncate needs a byte count");
-    } else if (arg == "--distance") {
-      if (!number(distance, 0.3, 5.0, false)) return usageError("--distance needs 0.3..5 m");
-    } else if (arg == "--tilt") {
-      if (!number(tilt, 0.0, 90.0, false)) return usageError("--tilt needs 0..90 deg");
-    } else if (arg == "--yaw") {
-      if (!number(yaw, -360.0, 360.0, false)) return usageError("--yaw needs -360..360 deg");
+      if (!number(truncate, 0, 1e12)) return usageError("--truncate needs a byte count");
     } else if (arg == "--out") {
       if (i + 1 >= argc) return usageError("--out needs a file name");
       path = argv[++i];
@@ -84,22 +68,9 @@ int main(int argc, char** argv) {
     }
   }
   if (path.empty()) return usageError("--out FILE.oni is required");
-  if (paper && objects > 0) return usageError("--paper and --objects exclude each other");
-
-  const auto n_seed = static_cast<uint32_t>(seed);
-  sim::SceneSpec spec;
-  if (paper) {
-    spec = sim::paperScene(sim::CameraPlacement{1.0f, 40.0f, 90.0f}, sim::NoiseModel{}, n_seed);
-  } else {
-    std::mt19937 rng(n_seed);
-    sim::RandomSceneOptions options;
-    if (objects > 0) options.min_objects = options.max_objects = static_cast<int>(objects);
-    spec = sim::randomScene(rng, options);
-  }
-  if (noiseless) spec.noise = sim::NoiseModel::noiseless();
-  if (!std::isnan(distance)) spec.placement.distance = static_cast<float>(distance);
-  if (!std::isnan(tilt)) spec.placement.tilt_deg = static_cast<float>(tilt);
-  if (!std::isnan(yaw)) spec.placement.yaw_deg = static_cast<float>(yaw);
+  usage_error = sim::sceneChoiceError(choice);
+  if (!usage_error.empty()) return usageError(usage_error);
+  sim::SceneSpec spec = sim::sceneSpecFrom(choice);
   if (qvga) {  // the same field of view at half the resolution
     sim::CameraIntrinsics& camera = spec.camera;
     camera.width /= 2;
