@@ -145,39 +145,24 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
   return solution;
 }
 
-// Geometric circle residuals |p - c| - r and their Jacobian w.r.t. (cx, cy, r).
-struct CircleResiduals {
+// Geometric residuals |p - c| - r(h) of points on a round wall and their Jacobian: without
+// heights a circle, parameters (cx, cy, r); with them a cone, (cx, cy, r0, s), r(h) = r0 + s h.
+struct RoundWallResiduals {
   const std::vector<Vec2d>& points;
+  const std::vector<double>* heights = nullptr;
   void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
                   Eigen::MatrixXd* jacobian) const {
     const Vec2d centre(x[0], x[1]);
     for (size_t i = 0; i < points.size(); ++i) {
       const Vec2d offset = points[i] - centre;
       const double distance = offset.norm();
-      residuals[i] = distance - x[2];
+      const double height = heights ? (*heights)[i] : 0.0;
+      residuals[i] = distance - (heights ? x[2] + x[3] * height : x[2]);
       if (jacobian) {
         // At the centre the direction is undefined; any unit vector keeps J finite.
         const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
-        jacobian->row(i) << -direction.x(), -direction.y(), -1.0;
-      }
-    }
-  }
-};
-
-// Cone residuals |q - c| - (r0 + s h) and their Jacobian w.r.t. (cx, cy, r0, s).
-struct ConeResiduals {
-  const std::vector<Vec2d>& points;
-  const std::vector<double>& heights;
-  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
-                  Eigen::MatrixXd* jacobian) const {
-    const Vec2d centre(x[0], x[1]);
-    for (size_t i = 0; i < points.size(); ++i) {
-      const Vec2d offset = points[i] - centre;
-      const double distance = offset.norm();
-      residuals[i] = distance - (x[2] + x[3] * heights[i]);
-      if (jacobian) {
-        const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
-        jacobian->row(i) << -direction.x(), -direction.y(), -1.0, -heights[i];
+        jacobian->row(i).head<3>() << -direction.x(), -direction.y(), -1.0;
+        if (heights) (*jacobian)(i, 3) = -height;
       }
     }
   }
@@ -223,7 +208,7 @@ Circle algebraicCircle(const std::vector<Vec2d>& points) {
   const double radius = scale * std::sqrt(radius_squared);
 
   Eigen::VectorXd residuals(points.size());
-  CircleResiduals{points}(Eigen::Vector3d(centre.x(), centre.y(), radius), residuals, nullptr);
+  RoundWallResiduals{points}(Eigen::Vector3d(centre.x(), centre.y(), radius), residuals, nullptr);
   circle.center = centre.cast<float>();
   circle.radius = static_cast<float>(radius);
   circle.rmse = static_cast<float>(rms(residuals));
@@ -236,10 +221,10 @@ Circle geometricCircle(const std::vector<Vec2d>& points, const Circle& initial,
   const Circle start = initial.ok ? initial : algebraicCircle(points);
   if (!start.ok || points.size() < 3) return Circle{};
   const Eigen::VectorXd x = levenbergMarquardt(
-      CircleResiduals{points}, Eigen::Vector3d(start.center.x(), start.center.y(), start.radius),
+      RoundWallResiduals{points}, Eigen::Vector3d(start.center.x(), start.center.y(), start.radius),
       points.size(), std::max(0, max_iterations));
   Eigen::VectorXd residuals(points.size());
-  CircleResiduals{points}(x, residuals, nullptr);
+  RoundWallResiduals{points}(x, residuals, nullptr);
   Circle circle;
   circle.center = Vec2d(x[0], x[1]).cast<float>();
   circle.radius = static_cast<float>(std::abs(x[2]));
@@ -380,7 +365,7 @@ struct ConeSolution {
 };
 
 ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder, int max_iterations) {
-  const ConeResiduals residual_model{split.side_xy, split.side_height};
+  const RoundWallResiduals residual_model{split.side_xy, &split.side_height};
   const int n = static_cast<int>(split.side_xy.size());
   const TrimmedSolution trimmed = trimmedLeastSquares(
       residual_model,
@@ -392,7 +377,7 @@ ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder, i
   solution.points = trimmed.inlier_count;
   Eigen::VectorXd residuals(n);
   Eigen::MatrixXd jacobian(n, 4);
-  Weighted<ConeResiduals>{residual_model, trimmed.inliers}(trimmed.x, residuals, &jacobian);
+  Weighted<RoundWallResiduals>{residual_model, trimmed.inliers}(trimmed.x, residuals, &jacobian);
   // Covariance of the estimate on the inliers: sigma^2 (J^T J)^-1, sigma^2 = SSR / (m - 4).
   // Residuals of neighbouring points are correlated (voxel grid, MLS smoothing), so this is
   // optimistic; the decision adds ConeParams::min_slope on top.
@@ -426,7 +411,7 @@ ShapeFit cylinderFromSplit(const RoundObjectPoints& split, const CylinderParams&
     return fit;
   }
   const TrimmedSolution trimmed = trimmedLeastSquares(
-      CircleResiduals{split.side_xy},
+      RoundWallResiduals{split.side_xy},
       Eigen::Vector3d(initial.center.x(), initial.center.y(), initial.radius),
       static_cast<int>(split.side_xy.size()), std::max(0, params.max_refine_iterations));
   circle.center = trimmed.x.head<2>().cast<float>();
