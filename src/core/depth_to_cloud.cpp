@@ -33,6 +33,16 @@ void backProject(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
   }
 }
 
+// The back-projected position, NaN for a pixel without depth.
+template <typename PointT>
+void setPosition(float x, float y, float z, bool valid, PointT& p) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  p.x = valid ? x : nan;
+  p.y = valid ? y : nan;
+  p.z = valid ? z : nan;
+  p.data[3] = 1.0f;  // PCL's homogeneous coordinate
+}
+
 template <typename PointT>
 void resizeOrganised(const PinholeIntrinsics& intrinsics, pcl::PointCloud<PointT>& cloud) {
   cloud.resize(static_cast<size_t>(intrinsics.width) * static_cast<size_t>(intrinsics.height));
@@ -76,27 +86,19 @@ void correctDepth(uint16_t* depth_mm, int pixel_count, const DepthCorrection& co
 void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics,
                   pcl::PointCloud<pcl::PointXYZ>& cloud) {
   resizeOrganised(intrinsics, cloud);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
   backProject(depth_mm, intrinsics, [&](int index, float x, float y, float z, bool valid) {
     auto& p = cloud[index];
-    p.x = valid ? x : nan;
-    p.y = valid ? y : nan;
-    p.z = valid ? z : nan;
-    p.data[3] = 1.0f;  // PCL's homogeneous coordinate
+    setPosition(x, y, z, valid, p);
   });
 }
 
 void depthToCloud(const uint16_t* depth_mm, const PinholeIntrinsics& intrinsics, const uint8_t* rgb,
                   int rgb_width, int rgb_height, pcl::PointCloud<pcl::PointXYZRGB>& cloud) {
   resizeOrganised(intrinsics, cloud);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
   const bool same_size = rgb_width == intrinsics.width && rgb_height == intrinsics.height;
   backProject(depth_mm, intrinsics, [&](int index, float x, float y, float z, bool valid) {
     auto& p = cloud[index];
-    p.x = valid ? x : nan;
-    p.y = valid ? y : nan;
-    p.z = valid ? z : nan;
-    p.data[3] = 1.0f;  // PCL's homogeneous coordinate
+    setPosition(x, y, z, valid, p);
     p.a = 255;
     if (!rgb) {
       p.r = p.g = p.b = 255;
