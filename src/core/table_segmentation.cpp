@@ -34,6 +34,13 @@ constexpr float kParallelCosine = 0.99756f;
 // a surface [m].
 constexpr float kBelowSupportDepth = 0.10f;
 constexpr float kBelowSupportInset = 0.01f;
+// A support surface is seen as a surface: its inliers fill most of its hull (tables on rendered
+// and OSD scenes fill 56-99 % of 5 cm cells, the gaps being the shadows of objects). A RANSAC
+// sliver through a box top and a few stray points spans a wide hull that it barely fills (5 %
+// at 1.45 m on a rendered scene, where it had been chosen over the table). Cells of 5 cm hold
+// several points even for clouds thinned to 2-3 cm.
+constexpr float kCoverageCell = 0.05f;
+constexpr float kMinSupportCoverage = 0.25f;
 // estimateUp: a support plane's normal, oriented towards the camera, points up in the image
 // (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
 // box faces and ceilings do not.
@@ -256,6 +263,40 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
   return candidates;
 }
 
+// Fraction of the kCoverageCell grid cells inside the candidate's hull that hold an inlier.
+float hullCoverage(const Cloud& cloud, const Candidate& candidate) {
+  if (candidate.hull_2d.size() < 3) return 0.0f;
+  Eigen::Vector2f low = candidate.hull_2d.front(), high = low;
+  for (const Eigen::Vector2f& q : candidate.hull_2d) {
+    low = low.cwiseMin(q);
+    high = high.cwiseMax(q);
+  }
+  const int columns = static_cast<int>((high.x() - low.x()) / kCoverageCell) + 1;
+  const int rows = static_cast<int>((high.y() - low.y()) / kCoverageCell) + 1;
+  // Hulls beyond 100 x 100 m (unfiltered far points) are not judged: the grid would be huge.
+  if (static_cast<long>(columns) * rows > 4000000L) return 1.0f;
+  std::vector<char> occupied(static_cast<size_t>(columns) * static_cast<size_t>(rows), 0);
+  for (int i : candidate.inliers) {
+    const Eigen::Vector3f p = cloud[i].getVector3fMap();
+    const int column = static_cast<int>((candidate.u.dot(p) - low.x()) / kCoverageCell);
+    const int row = static_cast<int>((candidate.v.dot(p) - low.y()) / kCoverageCell);
+    if (column >= 0 && column < columns && row >= 0 && row < rows) {
+      occupied[static_cast<size_t>(row) * columns + column] = 1;
+    }
+  }
+  int inside = 0, covered = 0;
+  for (int row = 0; row < rows; ++row) {
+    for (int column = 0; column < columns; ++column) {
+      const Eigen::Vector2f centre =
+          low + kCoverageCell * Eigen::Vector2f(column + 0.5f, row + 0.5f);
+      if (insideDistance(candidate.hull_2d, centre) <= 0.0f) continue;
+      ++inside;
+      covered += occupied[static_cast<size_t>(row) * columns + column];
+    }
+  }
+  return inside > 0 ? static_cast<float>(covered) / static_cast<float>(inside) : 1.0f;
+}
+
 // A support surface hides what lies just beneath it from the camera: a point below it whose
 // line of sight crosses the candidate well inside its hull would have been occluded by it. A
 // horizontal slice through several objects (a box top plus rings of the other objects' walls
@@ -296,10 +337,10 @@ bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams&
 }
 
 // The support plane among the candidates: the highest one (nearest the camera along its normal,
-// i.e. smallest d) with objects on it that is not itself an object's top; when none carries
-// objects, the highest one. Returns -1 for no candidates. Tables, floors and box tops are level
-// together: a candidate tilted against the dominant (first, largest) plane is a RANSAC sliver
-// through box tops and noise, never a support (seen on rendered scenes at 0.6-1.3 m).
+// i.e. smallest d) that fills its hull, with objects on it, and is not itself an object's top;
+// when none carries objects, the highest one. Returns -1 for no candidates. Tables, floors and
+// box tops are level together: a candidate tilted against the dominant (first, largest) plane is a
+// RANSAC sliver through box tops and noise, never a support (seen on rendered scenes at 0.6-1.3 m).
 int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
                   const TableParams& params) {
   if (candidates.empty()) return -1;
@@ -311,6 +352,7 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
   for (size_t rank = 0; rank < order.size(); ++rank) {
     const Candidate& candidate = candidates[order[rank]];
     if (candidate.plane.normal.dot(candidates.front().plane.normal) < kParallelCosine) continue;
+    if (hullCoverage(cloud, candidate) < kMinSupportCoverage) continue;
     if (hasPointsBelow(cloud, candidate, params)) continue;
     bool object_top = false;
     for (size_t lower = rank + 1; lower < order.size() && !object_top; ++lower) {

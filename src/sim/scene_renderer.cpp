@@ -603,6 +603,21 @@ SceneSpec paperScene(const CameraPlacement& placement, const NoiseModel& noise, 
   return spec;
 }
 
+SceneSpec jitteredPaperScene(std::mt19937& rng) {
+  std::uniform_real_distribution<float> distance(0.6f, 1.5f), tilt(20.0f, 60.0f), yaw(0.0f, 360.0f),
+      jitter(-0.015f, 0.015f), object_yaw(0.0f, static_cast<float>(kPi));
+  CameraPlacement placement{distance(rng), tilt(rng), yaw(rng)};
+  SceneSpec spec = paperScene(placement, NoiseModel(), static_cast<uint32_t>(rng()));
+  std::vector<Eigen::Vector2f> slots = {
+      {-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f}, {0.13f, 0.13f}};
+  std::shuffle(slots.begin(), slots.end(), rng);
+  for (size_t i = 0; i < spec.objects.size(); ++i) {
+    spec.objects[i].position_on_table = slots[i] + Eigen::Vector2f(jitter(rng), jitter(rng));
+    spec.objects[i].yaw = object_yaw(rng);
+  }
+  return spec;
+}
+
 // ---- output ----
 
 namespace {

@@ -88,22 +88,6 @@ void progress(int done, int total) {
   if (done == total) std::fprintf(stderr, "\n");
 }
 
-// The paper's four objects in a jittered 2 x 2 grid, random slots and yaws, random camera.
-SceneSpec paperObjectsScene(std::mt19937& rng) {
-  std::uniform_real_distribution<float> distance(0.6f, 1.5f), tilt(20.0f, 60.0f), yaw(0.0f, 360.0f),
-      jitter(-0.015f, 0.015f), object_yaw(0.0f, static_cast<float>(kPi));
-  CameraPlacement placement{distance(rng), tilt(rng), yaw(rng)};
-  SceneSpec spec = paperScene(placement, NoiseModel(), static_cast<uint32_t>(rng()));
-  std::vector<Eigen::Vector2f> slots = {
-      {-0.13f, -0.13f}, {-0.13f, 0.13f}, {0.13f, -0.13f}, {0.13f, 0.13f}};
-  std::shuffle(slots.begin(), slots.end(), rng);
-  for (size_t i = 0; i < spec.objects.size(); ++i) {
-    spec.objects[i].position_on_table = slots[i] + Eigen::Vector2f(jitter(rng), jitter(rng));
-    spec.objects[i].yaw = object_yaw(rng);
-  }
-  return spec;
-}
-
 struct Tally {
   std::vector<Sample> samples;
   int false_positives = 0;
@@ -447,7 +431,7 @@ int main(int argc, char** argv) {
   const int total = options.paper_scenes + options.random_scenes;
   for (int i = 0; i < total; ++i) {
     const SceneSpec spec =
-        i < options.paper_scenes ? paperObjectsScene(rng) : randomScene(rng, RandomSceneOptions());
+        i < options.paper_scenes ? jitteredPaperScene(rng) : randomScene(rng, RandomSceneOptions());
     runScene(spec, options, tally);
     progress(i + 1, total);
   }

@@ -208,6 +208,10 @@ SceneSpec randomScene(std::mt19937& rng, const RandomSceneOptions& options = {})
 SceneSpec paperScene(const CameraPlacement& placement = {}, const NoiseModel& noise = {},
                      uint32_t seed = 1);
 
+// The paper's four objects in a jittered 2 x 2 grid (random slots and yaws) seen from a random
+// camera (0.6-1.5 m, tilt 20-60 deg, any yaw): the benchmark's paper scenes.
+SceneSpec jitteredPaperScene(std::mt19937& rng);
+
 // Ground truth + scene parameters as a JSON object (hand-written, stable key order).
 std::string groundTruthJson(const RenderedScene& scene);
 // Writes the cloud as binary PCD / the ground truth as JSON; false on I/O failure.
