@@ -18,6 +18,7 @@
 #include <iostream>
 #include <map>
 #include <set>
+#include <tuple>
 
 using namespace tabletop_shapes;
 using namespace tabletop_shapes::sim;
@@ -47,6 +48,7 @@ const std::map<std::string, std::map<std::string, double>> kPaperErrors = {
     {"mug", {{"radius", 24.14}, {"height", 3.83}, {"volume", 40.22}}},
     {"beaker",
      {{"radius_bottom", 10.0}, {"radius_top", 10.0}, {"height", 5.27}, {"volume", 15.22}}}};
+constexpr int kMinVisiblePixels = 200;
 const char* kPaperObjects[] = {"milk-tea box", "teapot box", "mug", "beaker"};
 
 // One true object as the pipeline saw it.
@@ -58,6 +60,8 @@ struct Sample {
   double range = 0.0;  // camera to the object's centre [m]
   int faces_seen = 0;
   int visible_pixels = 0;
+  // Counted for detection: enough pixels, and enough surface for the pipeline's settings.
+  bool observable = false;
   std::vector<Measure> measures;
   double volume_estimate = 0.0, volume_truth = 0.0;
 };
@@ -95,8 +99,27 @@ struct Tally {
   std::vector<double> frame_ms;
 };
 
+// Occupied voxels (edge `leaf`) of each object's valid pixels at least `min_height` above the
+// table: what the voxel grid and the table's noise band leave for clustering. An object cut by
+// the image border or by the sensor's minimum range can keep hundreds of pixels yet cover fewer
+// voxels than the smallest cluster the pipeline accepts (a beaker at 0.42 m: 431 px).
+std::vector<int> occupiedVoxels(const RenderedScene& scene, float leaf, float min_height) {
+  std::vector<std::set<std::tuple<int, int, int>>> voxels(scene.objects.size());
+  for (size_t i = 0; i < scene.labels.size(); ++i) {
+    const int label = scene.labels[i];
+    if (label < 0 || label >= static_cast<int>(voxels.size())) continue;
+    const Eigen::Vector3f p = (*scene.cloud)[i].getVector3fMap();
+    if (!p.allFinite() || scene.table_plane.signedDistance(p) < min_height) continue;
+    const Eigen::Vector3i key = (p / std::max(leaf, 1e-4f)).array().floor().cast<int>();
+    voxels[label].insert({key.x(), key.y(), key.z()});
+  }
+  std::vector<int> counts;
+  for (const auto& set : voxels) counts.push_back(static_cast<int>(set.size()));
+  return counts;
+}
+
 void printScene(const RenderedScene& scene, const SceneResult& result,
-                const std::vector<Match>& matches) {
+                const std::vector<Match>& matches, const std::vector<int>& voxels) {
   auto fitText = [](const ShapeFit& f) {
     char text[200];
     if (!f.ok) {
@@ -118,8 +141,8 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
   std::vector<bool> matched(result.objects.size());
   for (size_t t = 0; t < scene.objects.size(); ++t) {
     const GroundTruthObject& o = scene.objects[t];
-    std::printf("  truth %-15s at %6.3f %6.3f %6.3f (%5d px) -> ", o.name.c_str(), o.center.x(),
-                o.center.y(), o.center.z(), o.visible_pixels);
+    std::printf("  truth %-15s at %6.3f %6.3f %6.3f (%5d px, %4d voxels) -> ", o.name.c_str(),
+                o.center.x(), o.center.y(), o.center.z(), o.visible_pixels, voxels[t]);
     const auto m = std::find_if(matches.begin(), matches.end(),
                                 [&](const Match& m) { return m.truth == static_cast<int>(t); });
     if (m == matches.end()) {
@@ -149,11 +172,13 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
   if (!result.table.found) ++tally.scenes_without_table;
 
   const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.06);
+  const std::vector<int> voxels =
+      occupiedVoxels(scene, params.preprocess.leaf_size, params.table.min_height);
   std::vector<int> detection_of(scene.objects.size(), -1);
   for (const Match& m : matches) detection_of[m.truth] = m.detection;
   const int false_positives = static_cast<int>(result.objects.size() - matches.size());
   tally.false_positives += false_positives;
-  if (options.verbose) printScene(scene, result, matches);
+  if (options.verbose) printScene(scene, result, matches, voxels);
   const bool missed = std::count(detection_of.begin(), detection_of.end(), -1) > 0;
   if (!options.failures_dir.empty() && (missed || false_positives > 0)) {
     const std::string prefix =
@@ -169,6 +194,8 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
     sample.truth_type = truth.type;
     sample.range = truth.center.norm();
     sample.visible_pixels = truth.visible_pixels;
+    sample.observable =
+        truth.visible_pixels >= kMinVisiblePixels && voxels[t] >= params.clustering.min_size;
     sample.volume_truth = volume(truth);
     if (detection_of[t] >= 0) {
       const ShapeFit& fit = result.objects[detection_of[t]];
@@ -228,14 +255,16 @@ void printDetection(const Tally& tally) {
   std::map<ShapeType, std::map<std::string, int>> confusion;
   int detected = 0, right = 0, counted = 0;
   for (const Sample& s : tally.samples) {
-    if (s.visible_pixels < 200) continue;  // hidden behind another object or out of view
+    if (!s.observable) continue;  // hidden behind another object, out of view or out of range
     ++counted;
     detected += s.detected;
     right += s.detected && s.found_type == s.truth_type;
     confusion[s.truth_type][s.detected ? shapeTypeName(s.found_type) : "missed"]++;
   }
-  std::printf("\nDetection and type, every object with >= 200 visible pixels (%d of %zu)\n",
-              counted, tally.samples.size());
+  std::printf(
+      "\nDetection and type, every object with >= %d visible pixels covering at least"
+      " clustering.min_size voxels above table.min_height (%d of %zu)\n",
+      kMinVisiblePixels, counted, tally.samples.size());
   std::printf(
       "  detected %d / %d = %.1f %%, type right %d / %d = %.1f %%, false positives %d,"
       " scenes without table %d\n",
