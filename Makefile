@@ -10,7 +10,7 @@ BUILD_DIR ?= build
 REAL_BUILD_DIR ?= .build
 JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
-              -DCATKIN_ENABLE_TESTING=ON
+              -DCATKIN_ENABLE_TESTING=ON -DCMAKE_INSTALL_PREFIX=$(abspath $(PREFIX))
 
 .PHONY: deps build install test demo benchmark-accuracy format clean
 
@@ -30,19 +30,21 @@ build: deps
 # command-line tools; `source $(PREFIX)/setup.bash` then makes rosrun / roslaunch use them.
 # The default is hidden because roslaunch searches the source package (the repository root)
 # for launch files, skipping only hidden folders: an install/ here would give each launch file
-# twice. catkin writes the prefix into the generated setup files when configuring, so a new
-# PREFIX reconfigures the build, then builds again: once, such a reconfigure was seen to leave
-# devel/include/tabletop_shapes/ empty (the generated message and config headers), and the
-# install needs them.
+# twice. The build is configured for PREFIX when it is first configured; another PREFIX later
+# reconfigures it (catkin writes the prefix into generated files) and then rebuilds most of it.
+# DESTDIR=<dir> stages the install under <dir>$(PREFIX) without reconfiguring: the staged
+# setup.bash finds its own folder, so the staged copy works where it is (test_install uses it).
+# Once, a prefix reconfigure was seen to leave devel/include/tabletop_shapes/ empty (the
+# generated message and config headers), which the install needs: hence the build after it.
 PREFIX ?= .install
 install: build
 	@prefix=$$(realpath -m $(PREFIX)); \
 	if ! grep -qx "CMAKE_INSTALL_PREFIX:PATH=$$prefix" $(BUILD_DIR)/CMakeCache.txt; then \
 	  cmake $$(realpath $(BUILD_DIR)) -DCMAKE_INSTALL_PREFIX=$$prefix >/dev/null; \
 	  cmake --build $(BUILD_DIR) -- -j$(JOBS) >/dev/null; fi
-	cmake --install $(BUILD_DIR) >/dev/null
-	@echo "installed $$(wc -l <$(BUILD_DIR)/install_manifest.txt) files into $$(realpath -m $(PREFIX));" \
-	  "use them with: source $$(realpath -m $(PREFIX))/setup.bash"
+	DESTDIR=$(DESTDIR) cmake --install $(BUILD_DIR) >/dev/null
+	@echo "installed $$(wc -l <$(BUILD_DIR)/install_manifest.txt) files into $(DESTDIR)$$(realpath -m $(PREFIX));" \
+	  "use them with: source $(DESTDIR)$$(realpath -m $(PREFIX))/setup.bash"
 
 # Builds the tests and runs them all through ctest, which exits non-zero on any failure
 # (unlike `catkin_make run_tests`).

@@ -1,25 +1,25 @@
 #!/usr/bin/env bash
-# `make install PREFIX=<tmp>` must give a package that works on its own: in a clean environment
-# (no devel space, no source tree on any path) that only sources <tmp>/setup.bash, rospack finds
-# the package and its nodelet plugin in the prefix, the message modules import from it, the
-# installed estimate_shapes processes a real scene, and pipeline.launch loads the four
-# processing nodelets from the installed library.
+# `make install`, staged with DESTDIR=<tmp>, must give a package that works on its own: in a
+# clean environment (no devel space, no source tree on any path) that only sources the staged
+# setup.bash, rospack finds the package and its nodelet plugin in the stage, the message modules
+# import from it, the installed estimate_shapes processes a real scene, and pipeline.launch
+# loads the four processing nodelets from the installed library.
 #   test_install.sh SOURCE_DIR BUILD_DIR
 set -u
 export PATH="/usr/bin:/bin:$PATH"
 src="${1:?usage: test_install.sh SOURCE_DIR BUILD_DIR}"
 build="${2:?usage: test_install.sh SOURCE_DIR BUILD_DIR}"
 tmp=$(mktemp -d)
-prefix="$tmp/prefix"
+# Staged under DESTDIR at the build's own install prefix: installing to another prefix would
+# reconfigure the build, and the next `make` would then rebuild most of it.
+build_prefix=$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$build/CMakeCache.txt")
+prefix="$tmp/stage$build_prefix"
 launch_pid=""
-# make install reconfigures the build for the temporary prefix: put the user's prefix back.
-original_prefix=$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$build/CMakeCache.txt")
 cleanup() {
   if [ -n "$launch_pid" ]; then  # roslaunch itself (not the shell around it) stops its nodes
     kill -TERM "$(cat "$tmp/roslaunch.pid" 2>/dev/null)" "$launch_pid" 2>/dev/null
     wait "$launch_pid" 2>/dev/null
   fi
-  cmake "$build" -DCMAKE_INSTALL_PREFIX="$original_prefix" >/dev/null 2>&1
   rm -rf "$tmp"
 }
 trap cleanup EXIT
@@ -27,12 +27,13 @@ failures=0
 check() { if eval "$2"; then echo "PASS: $1"; else echo "FAIL: $1"; failures=$((failures + 1)); fi; }
 
 # The Makefile's target, as a user runs it (the build is up to date: make test built it).
-if ! make -C "$src" install PREFIX="$prefix" BUILD_DIR="$build" JOBS=1 >"$tmp/install.log" 2>&1; then
+if ! make -C "$src" install PREFIX="$build_prefix" DESTDIR="$tmp/stage" BUILD_DIR="$build" \
+    JOBS=1 >"$tmp/install.log" 2>&1; then
   echo "FAIL: make install"
   tail -n 30 "$tmp/install.log"
   exit 1
 fi
-echo "PASS: make install PREFIX=$prefix ($(find "$prefix" -type f | wc -l) files)"
+echo "PASS: make install DESTDIR=$tmp/stage ($(find "$prefix" -type f | wc -l) files)"
 
 # Everything below runs with only the prefix's setup.bash sourced.
 in_prefix() {
