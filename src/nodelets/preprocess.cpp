@@ -44,10 +44,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
     subscriber_ = bridge::subscribeInputCloud(
         node, "input", queue_size, [this](const auto& cloud) { onCloud(cloud); },
         [this](const std::string& invalid) {
-          if (problem_throttle_.shouldLog(invalid)) {
-            NODELET_ERROR("skipping input cloud: %s", invalid.c_str());
-          }
-          monitor_->frameSkipped(invalid);
+          monitor_->frameSkipped(
+              invalid, {bridge::Problem::Level::Error, "skipping input cloud: " + invalid, {}});
         });
   }
 
@@ -66,8 +64,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
                                      ? "input cloud is empty"
                                      : "none of the " + std::to_string(input->size()) +
                                            " input points is finite and within max_range";
-      if (problem_throttle_.shouldLog(reason)) NODELET_WARN("%s", reason.c_str());
-      monitor_->frameWithoutResult(reason);
+      monitor_->frameWithoutResult(reason, {bridge::Problem::Level::Warn, reason, {}});
     }
     boost::shared_ptr<const Cloud> shared = output;
     bridge::markPublished(shared);
@@ -76,7 +73,6 @@ class PreprocessNodelet : public nodelet::Nodelet {
   }
 
   std::unique_ptr<bridge::StageMonitor> monitor_;
-  bridge::ReasonThrottle problem_throttle_{5.0};
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<PreprocessConfig>> reconfigure_;
   std::mutex params_mutex_;

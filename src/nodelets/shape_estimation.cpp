@@ -106,8 +106,9 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       } catch (const tf2::TransformException& error) {
         const std::string reason = "no transform to output_frame '" + output_frame_ + "' from '" +
                                    objects.header.frame_id + "': " + error.what();
-        NODELET_WARN_THROTTLE(2.0, "skipping frame: %s", reason.c_str());
-        monitor_->frameSkipped(reason);
+        // tf's text holds times: throttle on the frames, not on the whole text.
+        monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
+                                        "no transform to " + output_frame_});
         return;
       }
     }

@@ -75,18 +75,33 @@ void StageMonitor::frameDone(double milliseconds, size_t points_in, size_t point
   window_max_ms_ = std::max(window_max_ms_, milliseconds);
 }
 
-void StageMonitor::frameSkipped(const std::string& reason) {
+void StageMonitor::frameSkipped(const std::string& reason, const Problem& problem) {
+  log(problem);
   std::lock_guard<std::mutex> lock(mutex_);
   ++skipped_;
   ++window_skipped_;
   last_skip_reason_ = reason;
 }
 
-void StageMonitor::frameWithoutResult(const std::string& reason) {
+void StageMonitor::frameWithoutResult(const std::string& reason, const Problem& problem) {
+  log(problem);
   std::lock_guard<std::mutex> lock(mutex_);
   ++without_result_;
   ++window_without_result_;
   last_no_result_reason_ = reason;
+}
+
+// Under the nodelet's logger name, as NODELET_WARN / NODELET_ERROR log.
+void StageMonitor::log(const Problem& problem) {
+  if (!log_throttle_.shouldLog(problem.throttle_key.empty() ? problem.log_text
+                                                            : problem.throttle_key)) {
+    return;
+  }
+  if (problem.level == Problem::Level::Error) {
+    ROS_ERROR_NAMED(name_, "%s", problem.log_text.c_str());
+  } else {
+    ROS_WARN_NAMED(name_, "%s", problem.log_text.c_str());
+  }
 }
 
 bool ReasonThrottle::shouldLog(const std::string& reason) {

@@ -94,10 +94,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       const std::string reason = "no transform from up_frame '" + up_frame_ + "' to '" +
                                  header.frame_id + "': " + error.what();
       // tf's text holds times: throttle on the frames, not on the whole text.
-      if (problem_throttle_.shouldLog("no transform from " + up_frame_)) {
-        NODELET_WARN("skipping frame: %s", reason.c_str());
-      }
-      monitor_->frameSkipped(reason);
+      monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
+                                      "no transform from " + up_frame_});
       return false;
     }
   }
@@ -115,10 +113,9 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     if (!lookUpDirection(input, params)) return;
     const TableResult result = TableSegmenter(params).segment(input);
     if (!result.found) {
-      if (problem_throttle_.shouldLog(result.reason)) {
-        NODELET_WARN("no table in the frame: %s", result.reason.c_str());
-      }
-      monitor_->frameWithoutResult("no table: " + result.reason);
+      monitor_->frameWithoutResult(
+          "no table: " + result.reason,
+          {bridge::Problem::Level::Warn, "no table in the frame: " + result.reason, {}});
     }
 
     const std_msgs::Header header = pcl_conversions::fromPCL(cloud->header);
@@ -143,7 +140,6 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   }
 
   std::unique_ptr<bridge::StageMonitor> monitor_;
-  bridge::ReasonThrottle problem_throttle_{5.0};
   std::string up_frame_;
   bool auto_up_ = false;
   ros::Duration tf_timeout_;

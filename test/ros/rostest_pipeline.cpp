@@ -450,6 +450,26 @@ std::vector<BadCloud> badClouds() {
 // Bad input between good frames: every bad cloud gets its clear message (at once, even right
 // after a different problem) and a count in /diagnostics, a repeated problem is throttled,
 // nothing crashes, and the good frames after them still give the objects.
+// output_frame without a transform: every frame is skipped by ShapeEstimation, counted in its
+// diagnostics, and logged once per 5 s (tf's text holds times, so the throttle keys on frames).
+TEST_F(PipelineTest, MissingOutputTransformIsReportedAndThrottled) {
+  const double timeout = privateParam("timeout", 40.0);
+  ASSERT_TRUE(
+      waitFor([&] { return diagnostic("shape_estimation", "frames skipped") >= 1; }, timeout))
+      << "frames without the output transform are reported as skipped";
+  const double skipped_before = diagnostic("shape_estimation", "frames skipped");
+  const ros::WallTime start = ros::WallTime::now();
+  ASSERT_TRUE(waitFor(
+      [&] { return diagnostic("shape_estimation", "frames skipped") >= skipped_before + 6; },
+      timeout));
+  const double seconds = (ros::WallTime::now() - start).toSec();
+  const std::string text = "no transform to output_frame 'map'";
+  EXPECT_GE(logsContaining(text, rosgraph_msgs::Log::WARN), 1) << "a warning naming the frame";
+  EXPECT_LE(logsContaining(text, rosgraph_msgs::Log::WARN), 2 + static_cast<int>(seconds / 5.0))
+      << "throttled to one line per 5 s";
+  EXPECT_EQ(objectsReceived(), 0u) << "nothing published in a frame that is not output_frame";
+}
+
 TEST_F(PipelineTest, BadInputIsReportedAndThePipelineKeepsRunning) {
   const double timeout = privateParam("timeout", 40.0);
   ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 1; }, timeout)) << "no objects at all";

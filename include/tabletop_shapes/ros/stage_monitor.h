@@ -20,37 +20,6 @@ namespace bridge {
 void markPublished(const boost::shared_ptr<const void>& cloud);
 bool wasPublishedInProcess(const void* cloud);
 
-class StageMonitor {
- public:
-  // `name`: the nodelet's name (the diagnostic status is "<name>: processing").
-  StageMonitor(ros::NodeHandle& node, const std::string& name);
-
-  // Counts a cloud received from the previous stage as shared (zero-copy) or copied.
-  void countInput(const void* cloud);
-  // One frame fully processed in `milliseconds`.
-  void frameDone(double milliseconds, size_t points_in, size_t points_out);
-  // A frame dropped without output (missing transform, invalid cloud), with the reason.
-  void frameSkipped(const std::string& reason);
-  // A frame processed, but with nothing found (no table), with the reason; call frameDone too.
-  void frameWithoutResult(const std::string& reason);
-
- private:
-  void publish(const ros::SteadyTimerEvent&);
-
-  std::string name_;
-  ros::Publisher publisher_;
-  ros::SteadyTimer timer_;
-  std::mutex mutex_;
-  // totals
-  uint64_t frames_ = 0, skipped_ = 0, without_result_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
-  double last_ms_ = 0.0;
-  size_t last_points_in_ = 0, last_points_out_ = 0;
-  std::string last_skip_reason_, last_no_result_reason_;
-  // since the last report
-  uint64_t window_frames_ = 0, window_skipped_ = 0, window_without_result_ = 0;
-  double window_sum_ms_ = 0.0, window_max_ms_ = 0.0;
-};
-
 // Throttling by reason: a problem is logged at once when it differs from the last one logged,
 // and at most once per period while it repeats. ROS's *_THROTTLE macros throttle per call
 // site, which would hide a second, different problem behind the first.
@@ -64,6 +33,48 @@ class ReasonThrottle {
   std::string last_reason_;
   std::chrono::steady_clock::time_point last_time_;
   std::mutex mutex_;
+};
+
+// A problem with a frame, as the nodelet's log shows it.
+struct Problem {
+  enum class Level { Warn, Error };
+  Level level = Level::Warn;
+  std::string log_text;      // the line logged
+  std::string throttle_key;  // repeats within 5 s are not logged again (empty: log_text)
+};
+
+class StageMonitor {
+ public:
+  // `name`: the nodelet's name (the diagnostic status is "<name>: processing").
+  StageMonitor(ros::NodeHandle& node, const std::string& name);
+
+  // Counts a cloud received from the previous stage as shared (zero-copy) or copied.
+  void countInput(const void* cloud);
+  // One frame fully processed in `milliseconds`.
+  void frameDone(double milliseconds, size_t points_in, size_t points_out);
+  // A frame dropped without output (missing transform, invalid cloud), with the reason shown
+  // in the diagnostics, and the problem logged (throttled by its key).
+  void frameSkipped(const std::string& reason, const Problem& problem);
+  // A frame processed, but with nothing found (no table), with the reason; call frameDone too.
+  void frameWithoutResult(const std::string& reason, const Problem& problem);
+
+ private:
+  void publish(const ros::SteadyTimerEvent&);
+  void log(const Problem& problem);
+
+  std::string name_;
+  ReasonThrottle log_throttle_{5.0};
+  ros::Publisher publisher_;
+  ros::SteadyTimer timer_;
+  std::mutex mutex_;
+  // totals
+  uint64_t frames_ = 0, skipped_ = 0, without_result_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
+  double last_ms_ = 0.0;
+  size_t last_points_in_ = 0, last_points_out_ = 0;
+  std::string last_skip_reason_, last_no_result_reason_;
+  // since the last report
+  uint64_t window_frames_ = 0, window_skipped_ = 0, window_without_result_ = 0;
+  double window_sum_ms_ = 0.0, window_max_ms_ = 0.0;
 };
 
 // Wall-clock stopwatch in milliseconds.
