@@ -222,9 +222,18 @@ int main(int argc, char** argv) {
   if (ros::console::set_logger_level("ros.roscpp", ros::console::levels::Warn)) {
     ros::console::notifyLoggerLevelsChanged();
   }
+  // Subscribing retries forever while there is no master: the timeout starts before it.
+  const ros::WallTime start = ros::WallTime::now();
+  while (!ros::master::check()) {
+    if (!ros::ok() || (ros::WallTime::now() - start).toSec() >= timeout) {
+      std::fprintf(stderr, "demo_summary: no ROS master at %s within %.0f s\n",
+                   ros::master::getURI().c_str(), timeout);
+      return 1;
+    }
+    ros::WallDuration(0.2).sleep();
+  }
   ros::NodeHandle node;
   std::vector<tabletop_shapes::Objects> received;
-  const ros::WallTime start = ros::WallTime::now();
   ros::Subscriber subscriber = node.subscribe<tabletop_shapes::Objects>(
       topic, 10, [&](const tabletop_shapes::ObjectsConstPtr& message) {
         received.push_back(*message);
