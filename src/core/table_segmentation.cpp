@@ -5,6 +5,7 @@
 #include "tabletop_shapes/core/convex_polygon.h"
 
 #include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/search/kdtree.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -46,6 +47,9 @@ constexpr float kMinSupportCoverage = 0.25f;
 // (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
 // box faces and ceilings do not.
 constexpr float kMinImageUpCosine = 0.1f;
+// Object points within hull_margin of the hull's edge are kept when linked to the points further
+// in by steps this short: twice the preprocessing voxel, so neighbouring surface samples link [m].
+constexpr float kEdgeLinkDistance = 0.01f;
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
@@ -177,21 +181,61 @@ void buildHull(const Cloud& cloud, Candidate& candidate) {
   candidate.centroid = origin + centroid_2d.x() * candidate.u + centroid_2d.y() * candidate.v;
 }
 
-// Points of `cloud` in the height band above the candidate and at least `margin` inside its hull.
+// Points of `cloud` in the height band above the candidate and inside its hull: those at least
+// hull_margin inside, and those nearer the hull's edge that belong to something reaching that far
+// in (linked to such points by steps of at most kEdgeLinkDistance through the edge band). The
+// margin drops noise along the table's edge; but where the table runs out of the image, the
+// hull's edge is the image border, and an object standing there (OSD learn38's mug) lost the
+// points that lie over the border's 2 cm band.
 void objectIndices(const Cloud& cloud, const Candidate& candidate, const TableParams& params,
                    std::vector<int>& indices) {
   indices.clear();
   if (candidate.hull_2d.size() < 3) return;
+  auto edge_band = std::make_shared<Cloud>();
+  std::vector<int> edge_indices;
+  std::vector<int> reaching_the_band;  // indices into `indices`: near enough to link to the band
   for (size_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3f p = cloud[i].getVector3fMap();
     if (!p.allFinite()) continue;
     const float height = candidate.plane.signedDistance(p);
     if (height < params.min_height || height > params.max_height) continue;
     const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-    if (insideDistance(candidate.hull_2d, q) >= params.hull_margin) {
+    const float inside = insideDistance(candidate.hull_2d, q);
+    if (inside >= params.hull_margin) {
+      if (inside < params.hull_margin + kEdgeLinkDistance) {
+        reaching_the_band.push_back(static_cast<int>(indices.size()));
+      }
       indices.push_back(static_cast<int>(i));
+    } else if (inside >= 0.0f) {
+      edge_band->push_back(cloud[i]);
+      edge_indices.push_back(static_cast<int>(i));
     }
   }
+  if (edge_band->empty() || reaching_the_band.empty()) return;
+
+  // Grow from the inner points into the edge band.
+  pcl::search::KdTree<Point> tree(false);
+  tree.setInputCloud(edge_band);
+  std::vector<bool> taken(edge_band->size(), false);
+  std::vector<int> frontier, neighbours;
+  std::vector<float> distances;
+  auto takeNeighbours = [&](const Point& p) {
+    tree.radiusSearch(p, kEdgeLinkDistance, neighbours, distances);
+    for (int j : neighbours) {
+      if (!taken[j]) {
+        taken[j] = true;
+        frontier.push_back(j);
+      }
+    }
+  };
+  for (int k : reaching_the_band) takeNeighbours(cloud[indices[k]]);
+  while (!frontier.empty()) {
+    const int j = frontier.back();
+    frontier.pop_back();
+    indices.push_back(edge_indices[j]);
+    takeNeighbours((*edge_band)[j]);
+  }
+  std::sort(indices.begin(), indices.end());  // keep the cloud's order
 }
 
 // Up to max_planes planes satisfying the constraint, each with >= min_inliers points; the
