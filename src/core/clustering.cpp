@@ -1,6 +1,7 @@
 // §2.5 Euclidean cluster extraction with a k-d tree.
 #include "tabletop_shapes/core/clustering.h"
 
+#include "tabletop_shapes/core/cluster_join.h"
 #include "tabletop_shapes/core/cluster_split.h"
 
 #include <pcl/search/kdtree.h>
@@ -50,6 +51,7 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
       clusters.push_back(part);
     }
   }
+  if (table) return joinInsidesSeenOverRims(clusters, *table, cloud->sensor_origin_.head<3>());
   std::stable_sort(clusters.begin(), clusters.end(),
                    [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });
   return clusters;

@@ -44,7 +44,7 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
   integer("table", "max_planes", table.max_planes, 1, 10,
           "horizontal planes examined to find the one the objects stand on");
   real("table", "hull_margin", table.hull_margin, 0.0, 1.0,
-       "objects must lie this far inside the table's convex hull [m] (§2.3)");
+       "objects must reach this far inside the table's convex hull [m] (§2.3)");
   real("table", "min_height", table.min_height, 0.0, 0.2,
        "object points start this far above the table [m]");
   real("table", "max_height", table.max_height, 0.01, 3.0,

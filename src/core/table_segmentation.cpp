@@ -2,7 +2,10 @@
 // the statistical outlier removal; plus the estimation of "up" for a camera of unknown tilt.
 #include "tabletop_shapes/core/table_segmentation.h"
 
+#include "tabletop_shapes/core/convex_polygon.h"
+
 #include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/search/kdtree.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -10,7 +13,6 @@
 #include <cstdio>
 #include <cmath>
 #include <iterator>
-#include <limits>
 #include <numeric>
 #include <random>
 
@@ -45,6 +47,9 @@ constexpr float kMinSupportCoverage = 0.25f;
 // (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
 // box faces and ceilings do not.
 constexpr float kMinImageUpCosine = 0.1f;
+// Object points within hull_margin of the hull's edge are kept when linked to the points further
+// in by steps this short: twice the preprocessing voxel, so neighbouring surface samples link [m].
+constexpr float kEdgeLinkDistance = 0.01f;
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
@@ -150,45 +155,6 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
   return true;
 }
 
-// Andrew's monotone chain; returns the hull counter-clockwise, without collinear points.
-std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
-  std::sort(points.begin(), points.end(), [](const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  points.erase(std::unique(points.begin(), points.end()), points.end());
-  if (points.size() < 3) return points;
-  auto cross = [](const Eigen::Vector2f& o, const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
-  std::vector<Eigen::Vector2f> hull(2 * points.size());
-  size_t k = 0;
-  for (size_t i = 0; i < points.size(); ++i) {  // lower hull
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0.0f) --k;
-    hull[k++] = points[i];
-  }
-  for (size_t i = points.size() - 1, lower = k + 1; i > 0; --i) {  // upper hull
-    while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i - 1]) <= 0.0f) --k;
-    hull[k++] = points[i - 1];
-  }
-  hull.resize(k - 1);  // the last point repeats the first
-  return hull;
-}
-
-// Distance of q inside the counter-clockwise convex polygon to its boundary (negative outside).
-float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& q) {
-  float nearest = std::numeric_limits<float>::max();
-  for (size_t i = 0; i < hull.size(); ++i) {
-    const Eigen::Vector2f& a = hull[i];
-    const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - a;
-    const float length = edge.norm();
-    if (length <= 0.0f) continue;
-    // Left of a counter-clockwise edge is inside.
-    const float distance = (edge.x() * (q.y() - a.y()) - edge.y() * (q.x() - a.x())) / length;
-    nearest = std::min(nearest, distance);
-  }
-  return nearest;
-}
-
 void buildHull(const Cloud& cloud, Candidate& candidate) {
   const Eigen::Vector3f& n = candidate.plane.normal;
   candidate.u = n.unitOrthogonal();
@@ -215,21 +181,61 @@ void buildHull(const Cloud& cloud, Candidate& candidate) {
   candidate.centroid = origin + centroid_2d.x() * candidate.u + centroid_2d.y() * candidate.v;
 }
 
-// Points of `cloud` in the height band above the candidate and at least `margin` inside its hull.
+// Points of `cloud` in the height band above the candidate and inside its hull: those at least
+// hull_margin inside, and those nearer the hull's edge that belong to something reaching that far
+// in (linked to such points by steps of at most kEdgeLinkDistance through the edge band). The
+// margin drops noise along the table's edge; but where the table runs out of the image, the
+// hull's edge is the image border, and an object standing there (OSD learn38's mug) lost the
+// points that lie over the border's 2 cm band.
 void objectIndices(const Cloud& cloud, const Candidate& candidate, const TableParams& params,
                    std::vector<int>& indices) {
   indices.clear();
   if (candidate.hull_2d.size() < 3) return;
+  auto edge_band = std::make_shared<Cloud>();
+  std::vector<int> edge_indices;
+  std::vector<int> reaching_the_band;  // indices into `indices`: near enough to link to the band
   for (size_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3f p = cloud[i].getVector3fMap();
     if (!p.allFinite()) continue;
     const float height = candidate.plane.signedDistance(p);
     if (height < params.min_height || height > params.max_height) continue;
     const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-    if (insideDistance(candidate.hull_2d, q) >= params.hull_margin) {
+    const float inside = insideDistance(candidate.hull_2d, q);
+    if (inside >= params.hull_margin) {
+      if (inside < params.hull_margin + kEdgeLinkDistance) {
+        reaching_the_band.push_back(static_cast<int>(indices.size()));
+      }
       indices.push_back(static_cast<int>(i));
+    } else if (inside >= 0.0f) {
+      edge_band->push_back(cloud[i]);
+      edge_indices.push_back(static_cast<int>(i));
     }
   }
+  if (edge_band->empty() || reaching_the_band.empty()) return;
+
+  // Grow from the inner points into the edge band.
+  pcl::search::KdTree<Point> tree(false);
+  tree.setInputCloud(edge_band);
+  std::vector<bool> taken(edge_band->size(), false);
+  std::vector<int> frontier, neighbours;
+  std::vector<float> distances;
+  auto takeNeighbours = [&](const Point& p) {
+    tree.radiusSearch(p, kEdgeLinkDistance, neighbours, distances);
+    for (int j : neighbours) {
+      if (!taken[j]) {
+        taken[j] = true;
+        frontier.push_back(j);
+      }
+    }
+  };
+  for (int k : reaching_the_band) takeNeighbours(cloud[indices[k]]);
+  while (!frontier.empty()) {
+    const int j = frontier.back();
+    frontier.pop_back();
+    indices.push_back(edge_indices[j]);
+    takeNeighbours((*edge_band)[j]);
+  }
+  std::sort(indices.begin(), indices.end());  // keep the cloud's order
 }
 
 // Up to max_planes planes satisfying the constraint, each with >= min_inliers points; the

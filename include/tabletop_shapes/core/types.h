@@ -46,8 +46,9 @@ struct TableParams {
   int max_iterations = 500;               // RANSAC iterations per plane
   int min_inliers = 500;                  // a support plane needs at least this many points
   int max_planes = 4;                     // horizontal planes examined (table, floor, shelves)
-  // Keep object points at least this far inside the table's hull [m]. The paper uses 0.10 m;
-  // on real OSD scenes that removed 32-100 % of the objects standing near an edge, and half of
+  // Objects must reach this far inside the table's hull [m]; their points nearer its edge are
+  // kept with them, other points there (table-edge noise) are not. The paper uses 0.10 m; on
+  // real OSD scenes that removed 32-100 % of the objects standing near an edge, and half of
   // PCL's mug (radius 0.054 m fitted instead of 0.039 m); 0.02 m keeps them, and the outlier
   // removal and minimum cluster size still drop table-edge noise.
   float hull_margin = 0.02f;

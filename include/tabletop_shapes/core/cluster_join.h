@@ -1,0 +1,20 @@
+// Joining the clusters of one open object (beyond the paper): the inside of a bowl, pot or cup,
+// seen over the rim, is often a Euclidean cluster apart from the outer wall below the rim (the
+// rim joins them only where it is seen from above, and the voxel grid and the sensor's gaps at
+// the silhouette cut it). Geometry only (XYZ).
+#pragma once
+
+#include "tabletop_shapes/core/types.h"
+
+namespace tabletop_shapes {
+
+// The clusters with every inside joined to the open object it belongs to, largest first. A
+// cluster is the inside of another when it reaches up to the other's top (rim) and the lines of
+// sight to its points below the rim pass through the other's footprint at the rim's height: the
+// camera sees them through the other's opening. In front of a solid object (or under a stacked
+// one) the lines of sight to what is visible never cross its top, so solid neighbours and
+// stacked objects stay apart. `viewpoint` is the camera position, `table` the support plane.
+std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, const Plane& table,
+                                              const Eigen::Vector3f& viewpoint);
+
+}  // namespace tabletop_shapes
