@@ -187,13 +187,6 @@ Eigen::Vector3f minimumAreaRectangleAxis(const NormalCloud& cloud, const std::ve
   return (best_direction.x() * e1 + best_direction.y() * e2).normalized();
 }
 
-// Distance of a point (in box coordinates, centred) to the surface of the box with half edges h.
-float distanceToBoxSurface(const Eigen::Vector3f& q, const Eigen::Vector3f& h) {
-  const Eigen::Vector3f outside = q.cwiseAbs() - h;
-  if ((outside.array() > 0.0f).any()) return outside.cwiseMax(0.0f).norm();
-  return -outside.maxCoeff();
-}
-
 ShapeFit failure(ShapeFit fit, const std::string& reason) {
   fit.ok = false;
   fit.reason = reason;
@@ -400,15 +393,20 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
 
   // RMS distance of all the object's points to the box surface.
   double squared_sum = 0.0;
-  const Eigen::Vector3f half = 0.5f * dimensions;
   for (const auto& p : object.points) {
-    const float distance =
-        distanceToBoxSurface(axes.transpose() * (p.getVector3fMap() - fit.center), half);
+    const float distance = distanceToBox(fit, p.getVector3fMap());
     squared_sum += static_cast<double>(distance) * distance;
   }
   fit.rmse = static_cast<float>(std::sqrt(squared_sum / n));
   fit.ok = true;
   return fit;
+}
+
+float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point) {
+  const Eigen::Vector3f local = box.orientation.conjugate() * (point - box.center);
+  const Eigen::Vector3f outside = local.cwiseAbs() - 0.5f * box.dimensions;
+  if ((outside.array() > 0.0f).any()) return outside.cwiseMax(0.0f).norm();
+  return -outside.maxCoeff();
 }
 
 }  // namespace tabletop_shapes

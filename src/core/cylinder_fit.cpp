@@ -515,4 +515,26 @@ ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
   return cylinder_fit;
 }
 
+float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point) {
+  // In the plane through the axis and the point, the solid is the trapezoid (0, 0), (r_bottom,
+  // 0), (r_top, h), (0, h) in (distance from the axis, height); its surface is every edge but
+  // the axis.
+  const bool cone = round.type == ShapeType::Cone;
+  const Vec2d bottom_rim(cone ? round.radius_bottom : round.radius, 0.0);
+  const Vec2d top_rim(cone ? round.radius_top : round.radius, round.height);
+  const Vec3d local = (round.orientation.conjugate() * (point - round.center)).cast<double>();
+  const Vec2d q(local.head<2>().norm(), local.z() + 0.5 * round.height);
+  auto toSegment = [&q](const Vec2d& a, const Vec2d& b) {
+    const Vec2d ab = b - a;
+    const double length_squared = ab.squaredNorm();
+    const double t =
+        length_squared > 0.0 ? std::clamp((q - a).dot(ab) / length_squared, 0.0, 1.0) : 0.0;
+    return (q - (a + t * ab)).norm();
+  };
+  const double distance =
+      std::min({toSegment(Vec2d::Zero(), bottom_rim), toSegment(bottom_rim, top_rim),
+                toSegment(top_rim, Vec2d(0.0, round.height))});
+  return static_cast<float>(distance);
+}
+
 }  // namespace tabletop_shapes

@@ -81,8 +81,6 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "start of the representative section of the sorted variations (§3.1)");
   real("predictor", "section_high", shapes.predictor.section_high, 0.0, 1.0,
        "end of the representative section of the sorted variations (§3.1)");
-  real("predictor", "fallback_rmse", shapes.predictor.fallback_rmse, 0.0, 0.1,
-       "a guessed model with a larger residual makes the other models be tried [m]");
   real("cube", "distance_threshold", shapes.cube.distance_threshold, 0.0005, 0.05,
        "box face inlier distance [m] (§3.2)");
   real("cube", "angle_threshold", shapes.cube.angle_threshold, 0.01, 1.57,

@@ -11,4 +11,8 @@ namespace tabletop_shapes {
 // when no consistent set of faces is found. center = centre of the solid box.
 ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams& params);
 
+// Distance [m] of `point` to the surface of the fitted box `box` (any face, the bottom one too),
+// from inside or outside alike.
+float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point);
+
 }  // namespace tabletop_shapes

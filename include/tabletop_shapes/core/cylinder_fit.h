@@ -27,4 +27,8 @@ ShapeFit fitCone(const NormalCloud& object, const Plane& table, const CylinderPa
 ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
                         const CylinderParams& cylinder, const ConeParams& cone);
 
+// Distance [m] of `point` to the surface of the fitted cylinder or truncated cone `round` (side
+// wall, top or bottom disc), from inside or outside alike.
+float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point);
+
 }  // namespace tabletop_shapes

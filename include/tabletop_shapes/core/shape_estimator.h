@@ -1,5 +1,6 @@
-// §3: one cluster in, one fitted solid out. Normals by MLS, the predictor's guess first; when
-// the guess fits badly the other models are tried and the lowest residual wins (§3.1).
+// §3: one cluster in, one fitted solid out. Normals by MLS; the box and the round model (cylinder
+// or cone) are both fitted and the one whose surface the points follow more closely wins (a
+// wrong guess of the §3.1 predictor falls back to the other model that way).
 #pragma once
 
 #include "tabletop_shapes/core/types.h"

@@ -83,9 +83,6 @@ struct PredictorParams {
   float threshold = 0.13f;
   float section_low = 0.25f;  // representative middle section of the sorted d(p)
   float section_high = 0.75f;
-  // A guessed model fitting worse than this [m] makes the others be tried: boxes fit real boxes
-  // to 0.4-0.6 mm and cylinders to ~3 mm (test_cube_fit), so 2 mm separates the two.
-  float fallback_rmse = 0.002f;
 };
 
 // §3.2
