@@ -36,6 +36,10 @@ struct Plane {
 struct PreprocessParams {
   float leaf_size = 0.005f;  // voxel edge [m]; <= 0 disables the voxel grid
   float max_range = 3.0f;    // keep points with |p| <= max_range [m]
+  // Organised input: a point whose image neighbours all lie within this angle of its line of
+  // sight is a flying pixel (a mix of foreground and background depth at an edge) and dropped;
+  // such points bridged objects standing one behind the other into one cluster [deg]. 0: off.
+  float flying_pixel_angle_deg = 10.0f;
 };
 
 // §2.2-2.4
