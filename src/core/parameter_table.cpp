@@ -70,6 +70,8 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "surface patch spacing of the concave-seam split [m]");
   integer("clustering", "split_min_points", cluster.split_min_points, 1, 10000000,
           "split parts with fewer points rejoin their neighbour");
+  real("clustering", "split_depth_step", cluster.split_depth_step, 0.0, 0.05,
+       "camera depth step at 1 m range, grows with range^2; the split's voxels follow it [m]");
 
   auto& shapes = p.shapes;
   real("normals", "search_radius", shapes.normals.search_radius, 0.002, 0.2,

@@ -70,6 +70,10 @@ struct ClusteringParams {
   float split_concavity_deg = 10.0f;  // concave seams flatter than this do not split [deg]
   float split_patch_size = 0.025f;    // surface patch (supervoxel seed) spacing [m]
   int split_min_points = 150;         // smaller parts rejoin their neighbour
+  // Depth step of the camera at 1 m range [m], growing with range^2 (Kinect v1 / Xtion: 1/8
+  // pixel disparity = 2.9 mm); the split's voxels grow with it so that the steps do not cut
+  // far surfaces apart. 0: fixed voxels.
+  float split_depth_step = 0.0029f;
 };
 
 // §3: normals by moving least squares
