@@ -1,6 +1,6 @@
 // Splitting touching or stacked objects at concave seams: supervoxels joined by local convexity
-// (LCCP). Small parts rejoin the neighbour they touch most, so a handle or a noisy patch does not
-// become an object.
+// (LCCP). Small parts rejoin a neighbour they do not meet at a concave seam, so a handle or a
+// noisy patch does not become an object.
 #include "tabletop_shapes/core/cluster_split.h"
 
 #include <pcl/search/kdtree.h>
@@ -13,13 +13,34 @@
 namespace tabletop_shapes {
 namespace {
 
-// Part label of every point; 0 for points no supervoxel holds.
-std::vector<uint32_t> convexPartLabels(const CloudConstPtr& cluster,
-                                       const ClusteringParams& params) {
-  // Voxels a little coarser than the preprocessing grid (5 mm), so neighbouring surface
-  // samples are adjacent voxels.
-  const float voxel = std::max(0.006f, params.split_patch_size / 4);
-  pcl::SupervoxelClustering<Point> supervoxel(voxel, params.split_patch_size);
+// One supervoxel adjacency between two LCCP parts, and whether LCCP found it convex.
+struct Seam {
+  uint32_t a, b;
+  bool convex;
+};
+
+struct ConvexParts {
+  std::vector<uint32_t> labels;  // part label of every point; 0 for points no supervoxel holds
+  std::vector<Seam> seams;       // supervoxel adjacencies between different parts
+};
+
+// Supervoxel edge length for a cluster at `range` from the camera. Beyond ~1.5 m the depth
+// steps of a disparity camera (growing with range^2) cut a surface into terraces farther apart
+// than 6 mm voxels; non-adjacent voxels leave a disconnected supervoxel graph, and its pieces
+// became objects of their own. Voxels 1.5 steps long keep neighbouring terraces adjacent.
+float supervoxelResolution(float range, const ClusteringParams& params) {
+  // A little coarser than the preprocessing grid (5 mm), so neighbouring surface samples are
+  // adjacent voxels.
+  const float base = std::max(0.006f, params.split_patch_size / 4);
+  return std::max(base, 1.5f * params.split_depth_step * range * range);
+}
+
+ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& params) {
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : *cluster) centroid += p.getVector3fMap();
+  centroid /= static_cast<float>(cluster->size());
+  const float voxel = supervoxelResolution(centroid.norm(), params);
+  pcl::SupervoxelClustering<Point> supervoxel(voxel, std::max(params.split_patch_size, 2 * voxel));
   supervoxel.setUseSingleCameraTransform(false);
   supervoxel.setColorImportance(0.0f);
   supervoxel.setSpatialImportance(1.0f);
@@ -40,10 +61,21 @@ std::vector<uint32_t> convexPartLabels(const CloudConstPtr& cluster,
   lccp.segment();
   pcl::PointCloud<pcl::PointXYZL>::Ptr labelled = supervoxel.getLabeledCloud();
   lccp.relabelCloud(*labelled);
-  std::vector<uint32_t> labels(cluster->size(), 0);
-  for (size_t i = 0; i < labels.size() && i < labelled->size(); ++i)
-    labels[i] = (*labelled)[i].label;
-  return labels;
+  ConvexParts parts;
+  parts.labels.assign(cluster->size(), 0);
+  for (size_t i = 0; i < parts.labels.size() && i < labelled->size(); ++i)
+    parts.labels[i] = (*labelled)[i].label;
+
+  std::map<uint32_t, uint32_t> part_of_supervoxel;
+  lccp.getSupervoxelToSegmentMap(part_of_supervoxel);
+  pcl::LCCPSegmentation<Point>::SupervoxelAdjacencyList graph;
+  lccp.getSVAdjacencyList(graph);
+  for (auto [edge, end] = boost::edges(graph); edge != end; ++edge) {
+    const uint32_t a = part_of_supervoxel[graph[boost::source(*edge, graph)]];
+    const uint32_t b = part_of_supervoxel[graph[boost::target(*edge, graph)]];
+    if (a != b) parts.seams.push_back({a, b, graph[*edge].is_convex});
+  }
+  return parts;
 }
 
 // Points of other parts among the k nearest neighbours of `part`'s points, per part.
@@ -62,14 +94,49 @@ std::map<uint32_t, int> neighbourVotes(const Cloud& cluster, pcl::search::KdTree
   return votes;
 }
 
-void relabel(std::vector<uint32_t>& labels, uint32_t from, uint32_t to) {
-  std::replace(labels.begin(), labels.end(), from, to);
+void relabel(ConvexParts& parts, uint32_t from, uint32_t to) {
+  std::replace(parts.labels.begin(), parts.labels.end(), from, to);
+  for (Seam& seam : parts.seams) {
+    if (seam.a == from) seam.a = to;
+    if (seam.b == from) seam.b = to;
+  }
 }
 
-// Unlabelled points (0) and parts below min_points join the neighbouring part they touch most,
-// smallest first.
+// How two parts meet: 2 along a (mostly) convex seam, 1 without a supervoxel seam (they only
+// lie close), 0 along a mostly concave seam.
+int seamRank(const std::vector<Seam>& seams, uint32_t part, uint32_t other) {
+  int convex = 0, concave = 0;
+  for (const Seam& seam : seams) {
+    if ((seam.a == part && seam.b == other) || (seam.a == other && seam.b == part))
+      ++(seam.convex ? convex : concave);
+  }
+  if (convex + concave == 0) return 1;
+  return convex >= concave ? 2 : 0;
+}
+
+// The neighbour `part` joins: the one it touches most among those it continues convexly, else
+// among those it only lies close to, else among those it meets at a concave seam.
+uint32_t bestNeighbour(const std::map<uint32_t, int>& votes, const std::vector<Seam>& seams,
+                       uint32_t part) {
+  uint32_t best = 0;
+  int rank = -1;
+  for (const auto& [label, n] : votes) {
+    const int r = seamRank(seams, part, label);
+    if (r > rank || (r == rank && n > votes.at(best))) {
+      best = label;
+      rank = r;
+    }
+  }
+  return best;
+}
+
+// Unlabelled points (0) and parts below min_points join the neighbouring part chosen by
+// bestNeighbour, smallest first: across a concave seam only when they touch nothing else (a
+// handle). A thin strip of a lower box's top face around a box standing on it touches the
+// upper box most, but meets it at the concave seam.
 void mergeSmallParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree, int min_points,
-                     std::vector<uint32_t>& labels) {
+                     ConvexParts& parts) {
+  std::vector<uint32_t>& labels = parts.labels;
   for (;;) {
     std::map<uint32_t, int> size;
     for (uint32_t l : labels) ++size[l];
@@ -81,29 +148,29 @@ void mergeSmallParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree, int
                  })->first;
       if (size[smallest] >= min_points) return;
     }
-    const std::map<uint32_t, int> votes = neighbourVotes(cluster, tree, labels, smallest);
-    uint32_t target = 0;
-    for (const auto& [label, n] : votes) {
-      if (target == 0 || n > votes.at(target)) target = label;
-    }
+    uint32_t target =
+        bestNeighbour(neighbourVotes(cluster, tree, labels, smallest), parts.seams, smallest);
     if (target == 0) {  // touches no other part: join the largest
       for (const auto& [label, n] : size) {
         if (label != smallest && label != 0 && (target == 0 || n > size[target])) target = label;
       }
     }
-    relabel(labels, smallest, target);
+    relabel(parts, smallest, target);
   }
 }
 
-// Neighbouring parts whose tops lie within kStackStep of each other rejoin: on a table a
-// concave seam between objects that matters here is one object standing or leaning on
-// another, whose top then rises above the lower one's. Parts of one object cut apart by noise
-// or by the concave inside of a cup or bowl end at the same top (rim) and are joined again.
-// (Touching objects of equal height therefore stay one cluster.)
+// Neighbouring parts rejoin when no concave seam parts them, or when their tops lie within
+// kStackStep of each other. On a table a concave seam between objects that matters here is one
+// object standing or leaning on another, whose top then rises above the lower one's. Parts of
+// one object cut apart by noise or by the concave inside of a cup or bowl end at the same top
+// (rim) and are joined again. Parts that touch without any supervoxel seam between them were
+// cut apart by a gap in the samples (an edge lost to the camera's near range, depth steps),
+// not by a seam. (Touching objects of equal height therefore stay one cluster.)
 constexpr float kStackStep = 0.02f;  // [m]
 
-void mergePartsOfEqualTop(const Cloud& cluster, pcl::search::KdTree<Point>& tree,
-                          const Plane& table, std::vector<uint32_t>& labels) {
+void mergeUnseparatedParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree,
+                           const Plane& table, ConvexParts& parts) {
+  std::vector<uint32_t>& labels = parts.labels;
   for (bool merged = true; merged;) {
     merged = false;
     std::map<uint32_t, float> top;
@@ -117,8 +184,9 @@ void mergePartsOfEqualTop(const Cloud& cluster, pcl::search::KdTree<Point>& tree
     }
     for (const auto& [part, part_top] : top) {
       for (const auto& [other, n] : neighbourVotes(cluster, tree, labels, part)) {
-        if (std::abs(top[other] - part_top) <= kStackStep) {
-          relabel(labels, part, other);
+        if (seamRank(parts.seams, part, other) == 1 ||
+            std::abs(top[other] - part_top) <= kStackStep) {
+          relabel(parts, part, other);
           merged = true;
           break;
         }
@@ -137,14 +205,15 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
       static_cast<int>(cluster->size()) < 2 * min_points) {
     return {cluster};
   }
-  std::vector<uint32_t> labels = convexPartLabels(cluster, params);
+  ConvexParts convex_parts = convexParts(cluster, params);
   pcl::search::KdTree<Point> tree(false);
   tree.setInputCloud(cluster);
-  mergeSmallParts(*cluster, tree, min_points, labels);
-  mergePartsOfEqualTop(*cluster, tree, table, labels);
+  mergeSmallParts(*cluster, tree, min_points, convex_parts);
+  mergeUnseparatedParts(*cluster, tree, table, convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
-  for (size_t i = 0; i < labels.size(); ++i) parts[labels[i]].push_back(static_cast<int>(i));
+  for (size_t i = 0; i < convex_parts.labels.size(); ++i)
+    parts[convex_parts.labels[i]].push_back(static_cast<int>(i));
   if (parts.size() < 2) return {cluster};
   std::vector<CloudPtr> out;
   for (const auto& [label, indices] : parts) {

@@ -31,6 +31,9 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "voxel grid leaf size [m]; 0 disables the grid (§2.1)");
   real("preprocess", "max_range", pre.max_range, 0.1, 20.0,
        "points farther than this from the camera are dropped [m] (§2.1)");
+  real("preprocess", "flying_pixel_angle_deg", pre.flying_pixel_angle_deg, 0.0, 45.0,
+       "organised input: points whose image neighbours all lie within this angle of the line of "
+       "sight are flying pixels and dropped [deg]; 0 disables");
 
   auto& table = p.table;
   real("table", "up_tolerance_deg", table.up_tolerance_deg, 1.0, 60.0,
@@ -67,6 +70,8 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "surface patch spacing of the concave-seam split [m]");
   integer("clustering", "split_min_points", cluster.split_min_points, 1, 10000000,
           "split parts with fewer points rejoin their neighbour");
+  real("clustering", "split_depth_step", cluster.split_depth_step, 0.0, 0.05,
+       "camera depth step at 1 m range, grows with range^2; the split's voxels follow it [m]");
 
   auto& shapes = p.shapes;
   real("normals", "search_radius", shapes.normals.search_radius, 0.002, 0.2,

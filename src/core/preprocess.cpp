@@ -1,4 +1,11 @@
-// §2.1 preprocessing: maximum range, then a voxel grid whose voxels become their centroid.
+// §2.1 preprocessing: flying pixels and the maximum range, then a voxel grid whose voxels become
+// their centroid.
+//
+// Flying pixels: at a depth edge a depth camera returns points between the foreground and the
+// background. Such a point is far, along its line of sight, from all its image neighbours,
+// while a surface point, however slanted, has a neighbour across the line of sight on the
+// same surface. Dropping them keeps objects one behind the other from being bridged into one
+// cluster.
 //
 // Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a single pass packs each
 // valid point's integer voxel coordinates into a 63-bit key and adds the point to that voxel's
@@ -33,7 +40,52 @@ inline int64_t floorToInt(float v) {
   return i - (v < static_cast<float>(i));
 }
 
+inline bool finitePoint(float x, float y, float z) {
+  return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
+}
+
 }  // namespace
+
+template <typename PointT>
+void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
+  const int width = static_cast<int>(in.width), height = static_cast<int>(in.height);
+  flying_.assign(in.points.size(), 0);
+  // Neighbour q of p lies within the angle a of p's line of sight when
+  // along^2 > cot^2(a) * across^2, with along = (q - p).p / |p|, across^2 = |q - p|^2 - along^2,
+  // i.e. ((q - p).p)^2 * (1 + cot^2(a)) > cot^2(a) * |q - p|^2 * |p|^2 (no square roots).
+  const float cot = 1.0f / std::tan(degToRad(params_.flying_pixel_angle_deg));
+  const float cot_sq = cot * cot, along_weight = 1.0f + cot_sq;
+  auto onSurface = [&](const PointT& p, float p_sq, const PointT& q) {
+    const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+    const float dot = dx * p.x + dy * p.y + dz * p.z;
+    return dot * dot * along_weight <= cot_sq * (dx * dx + dy * dy + dz * dz) * p_sq;
+  };
+  const int du[] = {1, 0, 0, -1, 1, -1, 1}, dv[] = {0, -1, 1, -1, -1, 1, 1};
+  for (int v = 0; v < height; ++v) {
+    const PointT* row = &in.points[static_cast<size_t>(v) * width];
+    for (int u = 0; u < width; ++u) {
+      const PointT& p = row[u];
+      if (!std::isfinite(p.z)) continue;  // depth cameras mark missing depth in z
+      const float p_sq = p.x * p.x + p.y * p.y + p.z * p.z;
+      // The left neighbour first: on most surfaces it already clears the point.
+      bool any_neighbour = u > 0 && std::isfinite(row[u - 1].z);
+      if (any_neighbour && onSurface(p, p_sq, row[u - 1])) continue;
+      bool on_surface = false;
+      for (int n = 0; n < 7 && !on_surface; ++n) {
+        const int nu = u + du[n], nv = v + dv[n];
+        if (static_cast<unsigned>(nu) >= static_cast<unsigned>(width) ||
+            static_cast<unsigned>(nv) >= static_cast<unsigned>(height))
+          continue;
+        const PointT& q = in.points[static_cast<size_t>(nv) * width + nu];
+        if (!std::isfinite(q.z)) continue;
+        any_neighbour = true;
+        on_surface = onSurface(p, p_sq, q);
+      }
+      // A point without any valid neighbour gives no evidence either way: kept.
+      flying_[static_cast<size_t>(v) * width + u] = any_neighbour && !on_surface;
+    }
+  }
+}
 
 void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out) {
   if (&in == &out) {  // in-place call: build the result separately, then swap
@@ -63,17 +115,21 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   out.sensor_origin_ = in.sensor_origin_;
   out.sensor_orientation_ = in.sensor_orientation_;
 
+  const bool organised = in.height > 1 && static_cast<size_t>(in.width) * in.height == in.size();
+  const bool drop_flying = organised && params_.flying_pixel_angle_deg > 0.0f;
+  if (drop_flying) markFlyingPixels(in);
   const bool limit_range = params_.max_range > 0.0f;
   const float max_range_sq = params_.max_range * params_.max_range;
-  auto keep = [&](const PointT& p) {
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+  auto keep = [&](const PointT& p, size_t i) {
+    if (!finitePoint(p.x, p.y, p.z) || (drop_flying && flying_[i])) return false;
     return !limit_range || p.x * p.x + p.y * p.y + p.z * p.z <= max_range_sq;
   };
 
   if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
     out.points.reserve(in.points.size());
-    for (const auto& p : in.points) {
-      if (keep(p)) out.points.emplace_back(p.x, p.y, p.z);
+    for (size_t i = 0; i < in.points.size(); ++i) {
+      const PointT& p = in.points[i];
+      if (keep(p, i)) out.points.emplace_back(p.x, p.y, p.z);
     }
     out.width = static_cast<uint32_t>(out.points.size());
     return;
@@ -98,8 +154,9 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   uint64_t last_key = kEmptyKey;
   uint32_t last_voxel = 0;
   const float limit = static_cast<float>(kAxisOffset - 1);
-  for (const auto& p : in.points) {
-    if (!keep(p)) continue;
+  for (size_t i = 0; i < in.points.size(); ++i) {
+    const PointT& p = in.points[i];
+    if (!keep(p, i)) continue;
     const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
     // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
     if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;

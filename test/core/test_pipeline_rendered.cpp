@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 
 using namespace tabletop_shapes;
@@ -103,22 +104,60 @@ SceneSpec benchmarkScene(uint32_t seed) {
   return SceneSpec();
 }
 
-// Benchmark scene 3107407257 (one milk-tea box seen from 1.46 m at 32 deg): a RANSAC sliver
-// through the box top and stray table points, tilted 3.5 deg and filling 5 % of its wide hull,
-// had been taken for the support plane; the table and the box were lost.
-TEST(PipelineOnRenderedScenes, FarTableIsNotLostToASliverThroughABoxTop) {
-  const RenderedScene scene = renderScene(benchmarkScene(3107407257u));
-  ASSERT_EQ(scene.objects.size(), 1u);
+// That scene through the pipeline, up given as the benchmark gives it (from tf2 on a robot).
+struct BenchmarkRun {
+  RenderedScene scene;
+  SceneResult result;
+  std::vector<Match> matches;
+  std::vector<std::string> typed_right;  // truth names, sorted
+};
+
+BenchmarkRun runBenchmarkScene(uint32_t seed) {
+  BenchmarkRun run;
+  run.scene = renderScene(benchmarkScene(seed));
   PipelineParams params;
-  params.table.up = scene.up;
-  const SceneResult result = Pipeline(params).process(*scene.cloud);
-  ASSERT_TRUE(result.table.found) << result.table.reason;
-  EXPECT_NEAR(result.table.plane.d, scene.table_plane.d, 0.005f);
-  EXPECT_GT(result.table.plane.normal.dot(scene.table_plane.normal), std::cos(degToRad(1.0f)));
-  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.03);
-  ASSERT_EQ(matches.size(), 1u);
-  EXPECT_EQ(result.objects.size(), 1u) << "false positives";
-  EXPECT_EQ(result.objects[matches[0].detection].type, ShapeType::Cube);
+  params.table.up = run.scene.up;
+  run.result = Pipeline(params).process(*run.scene.cloud);
+  run.matches = matchByCenter(run.scene.objects, run.result.objects, 0.03);
+  for (const Match& m : run.matches) {
+    if (run.result.objects[m.detection].type == run.scene.objects[m.truth].type) {
+      run.typed_right.push_back(run.scene.objects[m.truth].name);
+    }
+  }
+  std::sort(run.typed_right.begin(), run.typed_right.end());
+  return run;
+}
+
+// Benchmark scene 3107407257 (one milk-tea box seen from 1.46 m at 32 deg): a RANSAC sliver
+// tilted 3.5 deg through stray points near the table, filling 5 % of its wide hull, had been
+// taken for the support plane; the table and the box were lost.
+TEST(PipelineOnRenderedScenes, FarTableIsNotLostToASliver) {
+  const BenchmarkRun run = runBenchmarkScene(3107407257u);
+  ASSERT_TRUE(run.result.table.found) << run.result.table.reason;
+  EXPECT_NEAR(run.result.table.plane.d, run.scene.table_plane.d, 0.005f);
+  EXPECT_GT(run.result.table.plane.normal.dot(run.scene.table_plane.normal),
+            std::cos(degToRad(1.0f)));
+  EXPECT_EQ(run.result.objects.size(), 1u);
+  EXPECT_EQ(run.typed_right, std::vector<std::string>{"milk-tea box"});
+}
+
+// The teapot box stands 8 cm in front of the milk-tea box as the camera sees them; the flying
+// pixels along the teapot box's edge filled the 18 cm depth jump and made one cluster of both
+// (benchmark scene 698990783: both missed, a "cylinder" of radius 0.21 m found instead).
+TEST(PipelineOnRenderedScenes, BoxesOneBehindTheOtherAreNotBridgedByFlyingPixels) {
+  const BenchmarkRun run = runBenchmarkScene(698990783u);
+  EXPECT_EQ(run.result.objects.size(), 4u);
+  EXPECT_EQ(run.typed_right,
+            (std::vector<std::string>{"beaker", "milk-tea box", "mug", "teapot box"}));
+}
+
+// The camera's near range (0.45 m) cuts the teapot box's nearest edge away; its top face and
+// front face are then not adjacent surface patches and were two objects (benchmark scene
+// 3776734038). The mug, mostly nearer than 0.45 m, is not expected.
+TEST(PipelineOnRenderedScenes, BoxCutByTheNearRangeIsOneObject) {
+  const BenchmarkRun run = runBenchmarkScene(3776734038u);
+  EXPECT_EQ(run.result.objects.size(), 3u);
+  EXPECT_EQ(run.typed_right, (std::vector<std::string>{"beaker", "milk-tea box", "teapot box"}));
 }
 
 }  // namespace

@@ -169,6 +169,45 @@ TEST(Preprocess, EmptyAndAllNaNGiveEmptyOutput) {
   EXPECT_TRUE(out.empty());
 }
 
+// Depth image of a fronto-parallel box face (z = 1 m, columns 40-79) before a floor seen at a
+// 15 deg grazing angle (its depth grows ~1 cm per row), with flying pixels: every other row,
+// the pixel on either side of the box's left edge lies between the two depths.
+TEST(Preprocess, FlyingPixelsAtDepthEdgesAreDropped) {
+  const float focal = 575.0f;
+  pcl::PointCloud<pcl::PointXYZ> in(120, 80);
+  const Eigen::Vector3f floor_normal(0.0f, -std::cos(degToRad(15.0f)), -std::sin(degToRad(15.0f)));
+  const Eigen::Vector3f floor_point(0.0f, 0.0f, 2.0f);
+  auto depthOfPixel = [&](int u, int v) {
+    const Eigen::Vector3f ray((u - 60) / focal, (v - 40) / focal, 1.0f);
+    if (u >= 40 && u < 80) return 1.0f;
+    return floor_normal.dot(floor_point) / floor_normal.dot(ray);  // ray-plane, as z
+  };
+  size_t flying = 0;
+  for (int v = 0; v < 80; ++v) {
+    for (int u = 0; u < 120; ++u) {
+      float z = depthOfPixel(u, v);
+      const bool edge = u == 39 || u == 40;
+      if (edge && v % 2 == 0) {  // 30 % / 70 % of the way between box and floor
+        z = 1.0f + (u == 39 ? 0.3f : 0.7f) * (depthOfPixel(38, v) - 1.0f);
+        ++flying;
+      }
+      in.at(u, v) = pcl::PointXYZ((u - 60) / focal * z, (v - 40) / focal * z, z);
+    }
+  }
+  PreprocessParams params{0.0f, 10.0f};  // no voxel grid: every kept point comes out
+  Cloud out;
+  Preprocessor(params).apply(in, out);
+  EXPECT_EQ(out.size(), in.size() - flying);
+  for (const auto& p : out) {
+    const int u = static_cast<int>(std::lround(p.x / p.z * focal + 60));
+    const int v = static_cast<int>(std::lround(p.y / p.z * focal + 40));
+    EXPECT_NEAR(p.z, depthOfPixel(u, v), 1e-4f) << "flying pixel kept at " << u << ", " << v;
+  }
+  params.flying_pixel_angle_deg = 0.0f;  // off: all points stay
+  Preprocessor(params).apply(in, out);
+  EXPECT_EQ(out.size(), in.size());
+}
+
 TEST(Preprocess, VgaFrameIsFast) {
   // SPEC: faster than pcl::VoxelGrid (~21 ms on this VGA frame). CPU time, best of 5 runs, with
   // a generous bound, so that a loaded build machine does not make the test flaky.

@@ -1,4 +1,5 @@
-// §2.1 preprocessing: maximum range, then a voxel grid whose voxels become their centroid.
+// §2.1 preprocessing: flying pixels of organised clouds and the maximum range, then a voxel grid
+// whose voxels become their centroid.
 #pragma once
 
 #include "tabletop_shapes/core/types.h"
@@ -21,6 +22,8 @@ class Preprocessor {
  private:
   template <typename PointT>
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out);
+  template <typename PointT>
+  void markFlyingPixels(const pcl::PointCloud<PointT>& in);
 
   PreprocessParams params_;
   // Open-addressing hash from voxel key to the voxel's running sum; reused between frames.
@@ -34,7 +37,8 @@ class Preprocessor {
     uint32_t count;
   };
   std::vector<VoxelSlot> slots_;
-  std::vector<VoxelSum> sums_;  // in order of first appearance: deterministic output
+  std::vector<VoxelSum> sums_;   // in order of first appearance: deterministic output
+  std::vector<uint8_t> flying_;  // per input pixel: 1 = flying pixel; reused between frames
 };
 
 }  // namespace tabletop_shapes

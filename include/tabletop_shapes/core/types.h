@@ -36,6 +36,10 @@ struct Plane {
 struct PreprocessParams {
   float leaf_size = 0.005f;  // voxel edge [m]; <= 0 disables the voxel grid
   float max_range = 3.0f;    // keep points with |p| <= max_range [m]
+  // Organised input: a point whose image neighbours all lie within this angle of its line of
+  // sight is a flying pixel (a mix of foreground and background depth at an edge) and dropped;
+  // such points bridged objects standing one behind the other into one cluster [deg]. 0: off.
+  float flying_pixel_angle_deg = 10.0f;
 };
 
 // §2.2-2.4
@@ -67,6 +71,10 @@ struct ClusteringParams {
   float split_concavity_deg = 10.0f;  // concave seams flatter than this do not split [deg]
   float split_patch_size = 0.025f;    // surface patch (supervoxel seed) spacing [m]
   int split_min_points = 150;         // smaller parts rejoin their neighbour
+  // Depth step of the camera at 1 m range [m], growing with range^2 (Kinect v1 / Xtion: 1/8
+  // pixel disparity = 2.9 mm); the split's voxels grow with it so that the steps do not cut
+  // far surfaces apart. 0: fixed voxels.
+  float split_depth_step = 0.0029f;
 };
 
 // §3: normals by moving least squares
