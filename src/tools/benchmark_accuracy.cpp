@@ -180,7 +180,11 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally) {
   tally.false_positives += false_positives;
   if (options.verbose) printScene(scene, result, matches, voxels);
   const bool missed = std::count(detection_of.begin(), detection_of.end(), -1) > 0;
-  if (!options.failures_dir.empty() && (missed || false_positives > 0)) {
+  const bool wrong_type = std::any_of(matches.begin(), matches.end(), [&](const Match& m) {
+    const ShapeFit& fit = result.objects[m.detection];
+    return !fit.ok || fit.type != scene.objects[m.truth].type;
+  });
+  if (!options.failures_dir.empty() && (missed || wrong_type || false_positives > 0)) {
     const std::string prefix =
         (fs::path(options.failures_dir) / ("scene_" + std::to_string(spec.seed))).string();
     if (!writePcd(scene, prefix + ".pcd") || !writeGroundTruthJson(scene, prefix + ".json")) {
