@@ -52,13 +52,17 @@ void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
   flying_.assign(in.points.size(), 0);
   // Neighbour q of p lies within the angle a of p's line of sight when
   // along^2 > cot^2(a) * across^2, with along = (q - p).p / |p|, across^2 = |q - p|^2 - along^2,
-  // i.e. ((q - p).p)^2 * (1 + cot^2(a)) > cot^2(a) * |q - p|^2 * |p|^2 (no square roots).
+  // i.e. ((q - p).p)^2 * (1 + cot^2(a)) > cot^2(a) * |q - p|^2 * |p|^2 (no square roots), with p
+  // taken from the sensor origin.
   const float cot = 1.0f / std::tan(degToRad(params_.flying_pixel_angle_deg));
   const float cot_sq = cot * cot, along_weight = 1.0f + cot_sq;
-  auto onSurface = [&](const PointT& p, float p_sq, const PointT& q) {
+  // Lines of sight start at the cloud's sensor origin (the frame's origin for a camera frame).
+  const float eye_x = in.sensor_origin_.x(), eye_y = in.sensor_origin_.y(),
+              eye_z = in.sensor_origin_.z();
+  auto onSurface = [&](const PointT& p, float sight_sq, const PointT& q) {
     const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
-    const float dot = dx * p.x + dy * p.y + dz * p.z;
-    return dot * dot * along_weight <= cot_sq * (dx * dx + dy * dy + dz * dz) * p_sq;
+    const float dot = dx * (p.x - eye_x) + dy * (p.y - eye_y) + dz * (p.z - eye_z);
+    return dot * dot * along_weight <= cot_sq * (dx * dx + dy * dy + dz * dz) * sight_sq;
   };
   const int du[] = {1, 0, 0, -1, 1, -1, 1}, dv[] = {0, -1, 1, -1, -1, 1, 1};
   for (int v = 0; v < height; ++v) {
@@ -66,10 +70,11 @@ void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
     for (int u = 0; u < width; ++u) {
       const PointT& p = row[u];
       if (!std::isfinite(p.z)) continue;  // depth cameras mark missing depth in z
-      const float p_sq = p.x * p.x + p.y * p.y + p.z * p.z;
+      const float sx = p.x - eye_x, sy = p.y - eye_y, sz = p.z - eye_z;
+      const float sight_sq = sx * sx + sy * sy + sz * sz;
       // The left neighbour first: on most surfaces it already clears the point.
       bool any_neighbour = u > 0 && std::isfinite(row[u - 1].z);
-      if (any_neighbour && onSurface(p, p_sq, row[u - 1])) continue;
+      if (any_neighbour && onSurface(p, sight_sq, row[u - 1])) continue;
       bool on_surface = false;
       for (int n = 0; n < 7 && !on_surface; ++n) {
         const int nu = u + du[n], nv = v + dv[n];
@@ -79,7 +84,7 @@ void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
         const PointT& q = in.points[static_cast<size_t>(nv) * width + nu];
         if (!std::isfinite(q.z)) continue;
         any_neighbour = true;
-        on_surface = onSurface(p, p_sq, q);
+        on_surface = onSurface(p, sight_sq, q);
       }
       // A point without any valid neighbour gives no evidence either way: kept.
       flying_[static_cast<size_t>(v) * width + u] = any_neighbour && !on_surface;

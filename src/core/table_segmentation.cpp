@@ -416,6 +416,9 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   objectIndices(*cloud, table, params_, objects);
   auto above = std::make_shared<Cloud>();
   above->header = cloud->header;
+  // The camera's position travels with the points: the clustering's bowl join needs it.
+  above->sensor_origin_ = cloud->sensor_origin_;
+  above->sensor_orientation_ = cloud->sensor_orientation_;
   above->reserve(objects.size());
   for (int i : objects) above->push_back((*cloud)[i]);
   removeStatisticalOutliers(above, params_.outlier_k, params_.outlier_alpha, *result.object_points);
@@ -498,6 +501,8 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
   filter.setStddevMulThresh(alpha);
   filter.filter(out);
   out.header = in->header;
+  out.sensor_origin_ = in->sensor_origin_;
+  out.sensor_orientation_ = in->sensor_orientation_;
 }
 
 bool estimateUp(const CloudConstPtr& cloud, const TableParams& params, Eigen::Vector3f& up) {

@@ -203,6 +203,14 @@ TEST(Preprocess, FlyingPixelsAtDepthEdgesAreDropped) {
     const int v = static_cast<int>(std::lround(p.y / p.z * focal + 40));
     EXPECT_NEAR(p.z, depthOfPixel(u, v), 1e-4f) << "flying pixel kept at " << u << ", " << v;
   }
+  // The same cloud in a frame whose origin is not the camera: lines of sight start at the
+  // cloud's sensor origin, so the same points are dropped.
+  pcl::PointCloud<pcl::PointXYZ> moved = in;
+  const Eigen::Vector3f offset(0.4f, -1.1f, 0.7f);
+  for (auto& p : moved) p.getVector3fMap() += offset;
+  moved.sensor_origin_.head<3>() = offset;
+  Preprocessor(params).apply(moved, out);
+  EXPECT_EQ(out.size(), in.size() - flying);
   params.flying_pixel_angle_deg = 0.0f;  // off: all points stay
   Preprocessor(params).apply(in, out);
   EXPECT_EQ(out.size(), in.size());

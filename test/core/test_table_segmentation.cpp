@@ -269,6 +269,19 @@ TEST(TableSegmenter, ObjectAtTheHullEdgeIsKeptWhole) {
   EXPECT_EQ(elsewhere, 0u);
 }
 
+// Later stages look along lines of sight from the cloud's sensor origin (the bowl join in
+// clustering): the object points keep it.
+TEST(TableSegmenter, ObjectPointsKeepTheSensorOrigin) {
+  SyntheticScene scene = makeScene(true, true);
+  scene.cloud->sensor_origin_ = Eigen::Vector4f(0.001f, -0.002f, 0.003f, 0.0f);
+  TableParams params;
+  params.up = scene.up;
+  const TableResult result = TableSegmenter(params).segment(scene.cloud);
+  ASSERT_TRUE(result.found) << result.reason;
+  ASSERT_FALSE(result.object_points->empty());
+  EXPECT_TRUE(result.object_points->sensor_origin_.isApprox(scene.cloud->sensor_origin_));
+}
+
 TEST(TableSegmenter, EstimateUpFindsTheTiltedTable) {
   const SyntheticScene scene = makeScene(true, true);
   Eigen::Vector3f up;
