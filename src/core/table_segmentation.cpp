@@ -38,9 +38,9 @@ constexpr float kBelowSupportDepth = 0.10f;
 constexpr float kBelowSupportInset = 0.01f;
 // A support surface is seen as a surface: its inliers fill most of its hull (tables on rendered
 // and OSD scenes fill 56-99 % of 5 cm cells, the gaps being the shadows of objects). A RANSAC
-// sliver through a box top and a few stray points spans a wide hull that it barely fills (5 %
-// at 1.45 m on a rendered scene, where it had been chosen over the table). Cells of 5 cm hold
-// several points even for clouds thinned to 2-3 cm.
+// sliver through scattered points (the table's front edge, flying pixels, a box top) spans a
+// wide hull that it barely fills (5 % at 1.45 m on a rendered scene, where it had been chosen
+// over the table). Cells of 5 cm hold several points even for clouds thinned to 2-3 cm.
 constexpr float kCoverageCell = 0.05f;
 constexpr float kMinSupportCoverage = 0.25f;
 // estimateUp: a support plane's normal, oriented towards the camera, points up in the image

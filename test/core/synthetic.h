@@ -18,6 +18,14 @@ struct Sampler {
   unsigned seed = 1;
 };
 
+// Surfaces as the preprocessing leaves them: points 5 mm apart (its voxel grid), 1 mm noise.
+inline Sampler voxelGridSampler() {
+  Sampler s;
+  s.spacing = 0.005f;
+  s.noise_sigma = 0.001f;
+  return s;
+}
+
 inline void addIfVisible(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const Sampler& s,
                          std::mt19937& rng, Cloud& out) {
   if (n.dot(s.camera - p) <= 0.0f) return;

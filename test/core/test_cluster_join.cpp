@@ -15,17 +15,10 @@
 namespace tabletop_shapes {
 namespace {
 
-synthetic::Sampler sampler() {
-  synthetic::Sampler s;
-  s.spacing = 0.005f;  // the preprocessing voxel grid
-  s.noise_sigma = 0.001f;
-  return s;
-}
-
 // Moves table-frame clusters into a camera frame (camera at the origin, as the core assumes)
 // and joins them; returns the sizes of the results, largest first.
 std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame) {
-  const synthetic::Sampler s = sampler();
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
   Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
   const Eigen::Vector3f forward = (-s.camera).normalized();
   const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
@@ -50,7 +43,7 @@ std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame) {
 // and the inside (wall and bottom) where the camera sees it over the rim.
 std::pair<CloudPtr, CloudPtr> openBowl(float r, float h, const Eigen::Vector2f& centre) {
   const float wall = 0.004f, inner = r - wall;
-  const synthetic::Sampler s = sampler();
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
   auto outer = std::make_shared<Cloud>();
   for (const auto& p : *synthetic::roundObject(r, r, h, centre, s)) {
     const float radius = std::hypot(p.x - centre.x(), p.y - centre.y());
@@ -98,7 +91,7 @@ TEST(ClusterJoin, InsideOfABowlJoinsItsOuterWall) {
 // cylinder (radius, height) standing at `centre`.
 CloudPtr notHiddenBy(const Cloud& cloud, const Eigen::Vector2f& centre, float radius,
                      float height) {
-  const Eigen::Vector3f camera = sampler().camera;
+  const Eigen::Vector3f camera = synthetic::voxelGridSampler().camera;
   auto out = std::make_shared<Cloud>();
   for (const auto& point : cloud) {
     const Eigen::Vector3f p = point.getVector3fMap();
@@ -113,7 +106,7 @@ CloudPtr notHiddenBy(const Cloud& cloud, const Eigen::Vector2f& centre, float ra
 }
 
 TEST(ClusterJoin, SolidNeighboursAndStackedObjectsStayApart) {
-  const synthetic::Sampler s = sampler();
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
   // A can right behind another of the same height: the camera sees its upper part over the
   // front one's top, as it sees a bowl's inside over the rim, but not through the front one.
   const CloudPtr front = synthetic::roundObject(0.04f, 0.04f, 0.12f, {0.0f, 0.0f}, s);

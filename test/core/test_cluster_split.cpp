@@ -12,13 +12,6 @@
 namespace tabletop_shapes {
 namespace {
 
-synthetic::Sampler sampler() {
-  synthetic::Sampler s;
-  s.spacing = 0.005f;  // the preprocessing voxel grid
-  s.noise_sigma = 0.001f;
-  return s;
-}
-
 // Lifts a table-frame object by `dz` (stacked on something of that height).
 CloudPtr lifted(const CloudPtr& cloud, float dz) {
   auto out = std::make_shared<Cloud>(*cloud);
@@ -48,7 +41,8 @@ void toDisparitySteps(Cloud& cloud) {
 }
 
 // Moves the table frame into a camera frame (camera at the origin, as the core assumes).
-std::vector<CloudPtr> split(Cloud scene, const synthetic::Sampler& s = sampler(),
+std::vector<CloudPtr> split(Cloud scene,
+                            const synthetic::Sampler& s = synthetic::voxelGridSampler(),
                             bool disparity_steps = false) {
   Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
   const Eigen::Vector3f forward = (-s.camera).normalized();
@@ -89,9 +83,11 @@ void expectPartsMatch(const std::vector<CloudPtr>& parts, const std::vector<Clou
 }
 
 TEST(ClusterSplit, BoxStackedOnABox) {
-  const CloudPtr lower = synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, sampler());
-  const CloudPtr upper =
-      lifted(synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, sampler()), 0.06f);
+  const CloudPtr lower =
+      synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
+  const CloudPtr upper = lifted(
+      synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, synthetic::voxelGridSampler()),
+      0.06f);
   const CloudPtr lower_visible = withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
   Cloud scene = *lower_visible;
   scene += *upper;
@@ -102,9 +98,11 @@ TEST(ClusterSplit, BoxStackedOnABox) {
 }
 
 TEST(ClusterSplit, CylinderStandingOnARoundTin) {
-  const CloudPtr tin = synthetic::roundObject(0.10f, 0.10f, 0.05f, {0.0f, 0.0f}, sampler());
-  const CloudPtr can =
-      lifted(synthetic::roundObject(0.035f, 0.035f, 0.09f, {0.0f, 0.0f}, sampler()), 0.05f);
+  const CloudPtr tin =
+      synthetic::roundObject(0.10f, 0.10f, 0.05f, {0.0f, 0.0f}, synthetic::voxelGridSampler());
+  const CloudPtr can = lifted(
+      synthetic::roundObject(0.035f, 0.035f, 0.09f, {0.0f, 0.0f}, synthetic::voxelGridSampler()),
+      0.05f);
   auto tin_visible = std::make_shared<Cloud>();
   for (const auto& p : *tin) {
     if (std::hypot(p.x, p.y) > 0.036f || p.z < 0.049f) tin_visible->push_back(p);
@@ -116,10 +114,11 @@ TEST(ClusterSplit, CylinderStandingOnARoundTin) {
 
 TEST(ClusterSplit, SingleObjectsStayWhole) {
   const CloudPtr objects[] = {
-      synthetic::box({0.20f, 0.10f, 0.12f}, {0.0f, 0.0f}, 0.4f, sampler()),
-      synthetic::box({0.06f, 0.06f, 0.05f}, {0.0f, 0.0f}, 0.0f, sampler()),
-      synthetic::roundObject(0.04f, 0.04f, 0.16f, {0.0f, 0.0f}, sampler()),
-      synthetic::roundObject(0.05f, 0.03f, 0.12f, {0.0f, 0.0f}, sampler()),  // cone
+      synthetic::box({0.20f, 0.10f, 0.12f}, {0.0f, 0.0f}, 0.4f, synthetic::voxelGridSampler()),
+      synthetic::box({0.06f, 0.06f, 0.05f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler()),
+      synthetic::roundObject(0.04f, 0.04f, 0.16f, {0.0f, 0.0f}, synthetic::voxelGridSampler()),
+      synthetic::roundObject(0.05f, 0.03f, 0.12f, {0.0f, 0.0f},
+                             synthetic::voxelGridSampler()),  // cone
   };
   for (const CloudPtr& object : objects) {
     const std::vector<CloudPtr> parts = split(*object);
@@ -131,7 +130,7 @@ TEST(ClusterSplit, SingleObjectsStayWhole) {
 TEST(ClusterSplit, FarBoxWithDepthStepsStaysWhole) {
   // 2 m away the depth steps (12 mm) lie farther apart than 6 mm voxels: the supervoxel graph
   // fell apart into terraces, and the box into four parts.
-  synthetic::Sampler far = sampler();
+  synthetic::Sampler far = synthetic::voxelGridSampler();
   far.camera *= 2.0f;
   far.noise_sigma = 0.0f;  // the steps are the noise here
   const CloudPtr box = synthetic::box({0.235f, 0.127f, 0.242f}, {0.0f, 0.0f}, 0.3f, far);
@@ -143,7 +142,7 @@ TEST(ClusterSplit, FarBoxWithDepthStepsStaysWhole) {
 TEST(ClusterSplit, OpenCupWithHandleStaysWhole) {
   // Outer wall, the inside seen through the opening (concave seam at its bottom) and a handle.
   const float r = 0.04f, h = 0.10f, wall = 0.004f;
-  const synthetic::Sampler s = sampler();
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
   std::mt19937 rng(3);
   Cloud cup;
   const CloudPtr outer = synthetic::roundObject(r, r, h, {0.0f, 0.0f}, s);
@@ -181,10 +180,13 @@ TEST(ClusterSplit, OpenCupWithHandleStaysWhole) {
 }
 
 TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
-  const CloudPtr lower = synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, sampler());
+  const CloudPtr lower =
+      synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
   auto scene =
       std::make_shared<Cloud>(*withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f));
-  *scene += *lifted(synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, sampler()), 0.06f);
+  *scene += *lifted(
+      synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, synthetic::voxelGridSampler()),
+      0.06f);
   ClusteringParams off;
   off.split_concavity_deg = 0.0f;
   const Plane table = synthetic::tablePlane();

@@ -238,10 +238,8 @@ TEST(TableSegmenter, FlyingPixelsPastTheNearEdgeKeepTheTable) {
 TEST(TableSegmenter, ObjectAtTheHullEdgeIsKeptWhole) {
   SyntheticScene scene = makeScene(true, false);
   const Eigen::Vector3f camera(0.0f, -0.9f, 0.6f);  // makeScene's, table frame
-  synthetic::Sampler sampler;
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
   sampler.camera = camera;
-  sampler.spacing = 0.005f;
-  sampler.noise_sigma = 0.001f;
   const float radius = 0.04f;
   const Eigen::Vector2f centre(0.1f, kTableMinY + radius + 0.003f);
   Cloud added;
