@@ -43,23 +43,26 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   if (clusters.size() < 2) return clusters;
   const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
   const float eye_height = table.signedDistance(viewpoint);
-  std::vector<Footprint> footprints(clusters.size());
-  for (size_t c = 0; c < clusters.size(); ++c) {
+  auto footprintOf = [&](const std::vector<size_t>& members) {
     std::vector<Eigen::Vector2f> projected;
-    projected.reserve(clusters[c]->size());
     float top = -std::numeric_limits<float>::max();
-    for (const auto& point : *clusters[c]) {
-      const Eigen::Vector3f p = point.getVector3fMap();
-      top = std::max(top, table.signedDistance(p));
-      projected.emplace_back(u.dot(p), v.dot(p));
+    for (size_t c : members) {
+      for (const auto& point : *clusters[c]) {
+        const Eigen::Vector3f p = point.getVector3fMap();
+        top = std::max(top, table.signedDistance(p));
+        projected.emplace_back(u.dot(p), v.dot(p));
+      }
     }
-    footprints[c] = {top, convexHull2d(std::move(projected))};
-  }
+    return Footprint{top, convexHull2d(std::move(projected))};
+  };
+  std::vector<Footprint> footprints(clusters.size());
+  for (size_t c = 0; c < clusters.size(); ++c) footprints[c] = footprintOf({c});
 
-  // Is `inside` seen through the opening of `outer`?
-  auto seenThroughOpening = [&](size_t inside, size_t outer) {
-    const Footprint& rim = footprints[outer];
-    if (rim.hull.size() < 3 || std::abs(footprints[inside].top - rim.top) > kRimStep ||
+  // Is cluster `inside` seen through the opening whose rim is `rim`? `reaching_rim`: its top must
+  // also come within kRimStep of the rim (else it only must not rise above it).
+  auto seenThroughOpening = [&](size_t inside, const Footprint& rim, bool reaching_rim) {
+    const float rise = footprints[inside].top - rim.top;
+    if (rim.hull.size() < 3 || rise > kRimStep || (reaching_rim && rise < -kRimStep) ||
         !(eye_height > rim.top)) {
       return false;
     }
@@ -78,10 +81,32 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
 
   std::vector<int> parent(clusters.size());
   std::iota(parent.begin(), parent.end(), 0);
+  std::vector<bool> open(clusters.size(), false);  // an inside reaching the rim was seen in it
   for (size_t inside = 0; inside < clusters.size(); ++inside) {
     for (size_t outer = 0; outer < clusters.size(); ++outer) {
-      if (outer != inside && seenThroughOpening(inside, outer)) {
+      if (outer != inside && seenThroughOpening(inside, footprints[outer], true)) {
+        open[outer] = true;
         parent[root(parent, static_cast<int>(inside))] = root(parent, static_cast<int>(outer));
+      }
+    }
+  }
+  // The split may cut a bowl's concave inside into pieces, differently from run to run (PCL's
+  // supervoxels grow in pointer order); a piece that ends well below the rim (the bottom) joins
+  // an object known to be open when it is seen through that object's opening, the hull of the
+  // whole object so far. Only then: a box under a box is below the upper top too.
+  std::vector<std::vector<size_t>> groups(clusters.size());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    groups[root(parent, static_cast<int>(c))].push_back(c);
+  }
+  for (size_t outer = 0; outer < clusters.size(); ++outer) {
+    if (!open[outer]) continue;
+    const int group = root(parent, static_cast<int>(outer));
+    const Footprint rim = footprintOf(groups[group]);
+    for (size_t piece = 0; piece < clusters.size(); ++piece) {
+      if (groups[piece].size() == 1 &&
+          root(parent, static_cast<int>(piece)) == static_cast<int>(piece) &&
+          seenThroughOpening(piece, rim, false)) {
+        parent[piece] = group;
       }
     }
   }
