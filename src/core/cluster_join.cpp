@@ -90,10 +90,11 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
       }
     }
   }
-  // The split may cut a bowl's concave inside into pieces, differently from run to run (PCL's
-  // supervoxels grow in pointer order); a piece that ends well below the rim (the bottom) joins
-  // an object known to be open when it is seen through that object's opening, the hull of the
-  // whole object so far. Only then: a box under a box is below the upper top too.
+  // The split may cut a bowl's concave inside into pieces, and which pieces varies from run to
+  // run on the same cloud (seen in one process; cause not found); a piece that ends well below
+  // the rim (the bottom) joins an object known to be open when it is seen through that object's
+  // opening, the hull of the whole object so far. Only then: a box under a box is below the
+  // upper top too.
   std::vector<std::vector<size_t>> groups(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) {
     groups[root(parent, static_cast<int>(c))].push_back(c);

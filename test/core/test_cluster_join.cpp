@@ -87,9 +87,9 @@ TEST(ClusterJoin, InsideOfABowlJoinsItsOuterWall) {
   }
 }
 
-// The split may cut a bowl's concave inside into pieces (which pieces varies from run to run:
-// PCL's supervoxels grow in pointer order); the bottom piece, well below the rim, joins too.
-// It had stayed apart in one of two frames of the osd_learn33 rostest.
+// The split may cut a bowl's concave inside into pieces (which pieces varies from run to run on
+// the same cloud); the bottom piece, well below the rim, joins too. It had stayed apart in one of
+// two frames of the osd_learn33 rostest.
 TEST(ClusterJoin, InsideCutIntoPiecesJoinsWhole) {
   const float height = 0.08f;
   const auto [outer, inside] = openBowl(0.08f, height, {0.02f, 0.03f});
