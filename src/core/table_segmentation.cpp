@@ -347,8 +347,10 @@ bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams&
 // when none carries objects, the highest one. Returns -1 for no candidates. Tables, floors and
 // box tops are level together: a candidate tilted against the dominant (first, largest) plane is a
 // RANSAC sliver through box tops and noise, never a support (seen on rendered scenes at 0.6-1.3 m).
+// `support_objects`, when given, receives the chosen plane's object points (objectIndices), which
+// the selection has computed already for a plane with objects.
 int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
-                  const TableParams& params) {
+                  const TableParams& params, std::vector<int>* support_objects = nullptr) {
   if (candidates.empty()) return -1;
   std::vector<int> order(candidates.size());
   std::iota(order.begin(), order.end(), 0);
@@ -366,14 +368,20 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
     }
     if (object_top) continue;
     objectIndices(cloud, candidate, params, objects);
-    if (static_cast<int>(objects.size()) >= kMinSupportedPoints) return order[rank];
-  }
-  for (int index : order) {  // none carries objects: the highest level plane
-    if (candidates[index].plane.normal.dot(candidates.front().plane.normal) >= kParallelCosine) {
-      return index;
+    if (static_cast<int>(objects.size()) >= kMinSupportedPoints) {
+      if (support_objects) support_objects->swap(objects);
+      return order[rank];
     }
   }
-  return 0;
+  int chosen = 0;
+  for (int index : order) {  // none carries objects: the highest level plane
+    if (candidates[index].plane.normal.dot(candidates.front().plane.normal) >= kParallelCosine) {
+      chosen = index;
+      break;
+    }
+  }
+  if (support_objects) objectIndices(cloud, candidates[chosen], params, *support_objects);
+  return chosen;
 }
 
 }  // namespace
@@ -403,7 +411,8 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
     result.reason = reason;
     return result;
   }
-  const Candidate& table = candidates[selectSupport(*cloud, candidates, params_)];
+  std::vector<int> objects;
+  const Candidate& table = candidates[selectSupport(*cloud, candidates, params_, &objects)];
 
   result.found = true;
   result.plane = table.plane;
@@ -412,8 +421,6 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   result.table_points->reserve(table.inliers.size());
   for (int i : table.inliers) result.table_points->push_back((*cloud)[i]);
 
-  std::vector<int> objects;
-  objectIndices(*cloud, table, params_, objects);
   auto above = std::make_shared<Cloud>();
   above->header = cloud->header;
   // The camera's position travels with the points: the clustering's bowl join needs it.
