@@ -1,19 +1,19 @@
 // estimate_shapes: the whole pipeline on one PCD file, the result as one JSON document.
-//   estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] CLOUD.pcd
+//   estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] [--max-points N] CLOUD.pcd
 // Exit 0 when the cloud was processed (also without a table), 2 for bad usage, an unreadable
-// file or a cloud without x y z, 1 for an unexpected internal error.
+// or inconsistent file (named in one line) or a cloud without x y z, 1 for an unexpected
+// internal error.
 #include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
 
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/conversions.h>
-#include <pcl/io/pcd_io.h>
+#include "tabletop_shapes/core/pcd_reader.h"
+
+#include <pcl/console/print.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <set>
+#include <cstdlib>
 #include <iostream>
 #include <sstream>
 
@@ -22,7 +22,8 @@ using namespace tabletop_shapes;
 namespace {
 
 const char* kUsage =
-    "usage: estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] CLOUD.pcd\n"
+    "usage: estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] [--max-points N]\n"
+    "                       CLOUD.pcd   (ascii, binary or binary_compressed; N default 4000000)\n"
     "       estimate_shapes --parameters   (every parameter, its default and range)";
 
 struct UsageError : std::runtime_error {
@@ -120,62 +121,14 @@ void loadConfig(const std::string& path, PipelineParams& params) {
   }
 }
 
-// PCL's PCD reader crashes on some malformed files (random bytes: a segfault), so the header is
-// checked first: every line up to DATA must be a known PCD keyword, the sizes must be sane, and
-// a binary body must be as long as the header says.
-void checkPcdHeader(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw UsageError("cannot read PCD file " + path);
-  const std::set<std::string> keywords = {"VERSION", "FIELDS", "SIZE",      "TYPE",  "COUNT",
-                                          "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS"};
-  std::string line, data;
-  long long points = -1, point_size = 0;
-  for (int lines = 0; lines < 64 && std::getline(in, line); ++lines) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream words(line);
-    std::string keyword;
-    words >> keyword;
-    if (keyword == "DATA") {
-      words >> data;
-      break;
-    }
-    if (!keywords.count(keyword))
-      throw UsageError("cannot read PCD file " + path + ": not a PCD header");
-    if (keyword == "POINTS" && !(words >> points)) points = -2;
-    if (keyword == "SIZE") {
-      for (long long size; words >> size;) point_size += size;
-    }
+// Any PCD with x y z (float32 or float64); other fields (rgb, label, normals) are ignored.
+// Our bounded reader, not PCL's: see core/pcd_reader.h.
+pcl::PointCloud<pcl::PointXYZ> loadCloud(const std::string& path, const PcdReadOptions& options) {
+  try {
+    return readPcdFile(path, options);
+  } catch (const PcdError& e) {
+    throw UsageError("cannot read PCD file " + path + ": " + e.what());
   }
-  if (data != "ascii" && data != "binary" && data != "binary_compressed") {
-    throw UsageError("cannot read PCD file " + path + ": no DATA ascii|binary|binary_compressed");
-  }
-  if (points < 0 || points > 100000000) {
-    throw UsageError("cannot read PCD file " + path + ": bad POINTS");
-  }
-  const std::streamoff body_start = in.tellg();
-  in.seekg(0, std::ios::end);
-  const std::streamoff body = in.tellg() - body_start;
-  if (data == "binary" && body < points * point_size) {
-    throw UsageError("cannot read PCD file " + path + ": truncated (binary body too short)");
-  }
-  if (data == "binary_compressed" && points > 0 && body < 8) {
-    throw UsageError("cannot read PCD file " + path + ": truncated (no compressed body)");
-  }
-}
-
-// Any PCD with x y z; rgb and other fields (label, normals) are ignored.
-pcl::PointCloud<pcl::PointXYZ> loadCloud(const std::string& path) {
-  checkPcdHeader(path);
-  pcl::PCLPointCloud2 blob;
-  if (pcl::io::loadPCDFile(path, blob) < 0) throw UsageError("cannot read PCD file " + path);
-  for (const char* field : {"x", "y", "z"}) {
-    bool present = false;
-    for (const auto& f : blob.fields) present |= f.name == field;
-    if (!present) throw UsageError(path + " has no '" + field + "' field");
-  }
-  pcl::PointCloud<pcl::PointXYZ> cloud;
-  pcl::fromPCLPointCloud2(blob, cloud);
-  return cloud;
 }
 
 std::string toJson(const SceneResult& scene) {
@@ -241,6 +194,7 @@ void printParameterTable() {
 
 int run(int argc, char** argv) {
   PipelineParams params;
+  PcdReadOptions read_options;
   std::string cloud_path;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -254,6 +208,14 @@ int run(int argc, char** argv) {
       if (!params.auto_up) params.table.up = parseVector(up);
     } else if (arg == "--config") {
       loadConfig(value(), params);
+    } else if (arg == "--max-points") {
+      const std::string text = value();
+      char* end = nullptr;
+      const unsigned long long n = std::strtoull(text.c_str(), &end, 10);
+      if (text.empty() || *end || text[0] == '-' || n == 0) {
+        throw UsageError("--max-points wants a positive integer, got '" + text + "'");
+      }
+      read_options.max_points = n;
     } else if (arg == "--parameters") {
       printParameterTable();
       return 0;
@@ -270,7 +232,7 @@ int run(int argc, char** argv) {
   }
   if (cloud_path.empty()) throw UsageError("no cloud given");
 
-  const pcl::PointCloud<pcl::PointXYZ> cloud = loadCloud(cloud_path);
+  const pcl::PointCloud<pcl::PointXYZ> cloud = loadCloud(cloud_path, read_options);
   Pipeline pipeline(params);
   std::cout << toJson(pipeline.process(cloud)) << std::flush;
   return 0;
@@ -279,7 +241,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // PCL's reader prints its own complaints; our one line on stderr is the one that matters.
+  // The core's PCL algorithms may print; our one line on stderr is the one that matters.
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
   try {
     return run(argc, argv);

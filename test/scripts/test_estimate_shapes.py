@@ -4,6 +4,8 @@ cloud was processed (also without a table), exit 2 with one clear line on stderr
 usage, unreadable files and clouds without x y z; real scenes give the expected objects."""
 import json
 import os
+import re
+import struct
 import subprocess
 import sys
 import tempfile
@@ -29,6 +31,32 @@ def write_pcd(path, fields, rows, width=None, height=1):
             width, height, len(rows)))
         for row in rows:
             f.write(" ".join(str(v) for v in row) + "\n")
+
+
+def lzf_decompress(data, size):
+    """liblzf's format, as PCL writes it (a reference independent of the tool's reader)."""
+    out = bytearray()
+    i = 0
+    while i < len(data):
+        ctrl = data[i]
+        i += 1
+        if ctrl < 32:
+            out += data[i:i + ctrl + 1]
+            i += ctrl + 1
+            continue
+        length = ctrl >> 5
+        if length == 7:
+            length += data[i]
+            i += 1
+        ref = len(out) - ((ctrl & 0x1f) << 8) - data[i] - 1
+        i += 1
+        if ref + length + 2 <= len(out):
+            out += out[ref:ref + length + 2]
+        else:  # overlapping: byte by byte
+            for k in range(length + 2):
+                out.append(out[ref + k])
+    assert len(out) == size
+    return bytes(out)
 
 
 class BadInput(unittest.TestCase):
@@ -71,7 +99,7 @@ class BadInput(unittest.TestCase):
     def test_cloud_without_xyz(self):
         path = os.path.join(self.tmp, "noxyz.pcd")
         write_pcd(path, ["a", "b", "c"], [(1, 2, 3)] * 5)
-        self.assertUsageError([path], "has no 'x' field")
+        self.assertUsageError([path], "no 'x' field")
 
     def test_bad_config(self):
         cfg = os.path.join(self.tmp, "bad.yaml")
@@ -80,6 +108,102 @@ class BadInput(unittest.TestCase):
         path = os.path.join(self.tmp, "one.pcd")
         write_pcd(path, ["x", "y", "z"], [(0, 0, 1)])
         self.assertUsageError(["--config", cfg, path], "clustering.min_size = -4 is outside")
+
+
+def compressed_parts(path):
+    """The header, the two size fields and the LZF block of a binary_compressed PCD."""
+    data = open(path, "rb").read()
+    body = data.index(b"DATA binary_compressed\n") + len(b"DATA binary_compressed\n")
+    compressed, uncompressed = struct.unpack("<II", data[body:body + 8])
+    return data[:body], compressed, uncompressed, data[body + 8:]
+
+
+def with_header(header, **values):
+    for key, value in values.items():
+        header = re.sub(rb"\n%s [^\n]*\n" % key.encode(), b"\n%s %s\n" % (key.encode(), value),
+                        header)
+    return header
+
+
+class BadFiles(unittest.TestCase):
+    """Issue 16: files that made PCL's reader overread, allocate gigabytes or answer wrongly.
+    Every one is refused with exit 2 and one line naming the problem."""
+
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp()
+        self.header, self.compressed, self.uncompressed, self.block = compressed_parts(
+            os.path.join(DATA, "learn0.pcd"))
+
+    def write(self, name, data):
+        path = os.path.join(self.tmp, name)
+        with open(path, "wb") as f:
+            f.write(data)
+        return path
+
+    def assertRefused(self, path, expected):
+        code, out, err = run("--up", "auto", path)
+        self.assertEqual(code, 2, err)
+        self.assertEqual(out, "")
+        self.assertIn("cannot read PCD file", err.splitlines()[0])
+        self.assertIn(expected, err.splitlines()[0])
+
+    def test_compressed_declaring_more_points(self):
+        # finding 1: valgrind showed 3025 invalid reads, then SIGSEGV or garbage objects
+        header = with_header(self.header, HEIGHT=b"960", POINTS=b"614400")
+        path = self.write("more.pcd", header + struct.pack("<II", self.compressed,
+                                                           self.uncompressed) + self.block)
+        self.assertRefused(path, "decompresses to 6144000 bytes, but POINTS 614400")
+
+    def test_compressed_declaring_fewer_points(self):
+        # finding 4: "no table" and exit 0
+        header = with_header(self.header, HEIGHT=b"240", POINTS=b"153600")
+        path = self.write("fewer.pcd", header + struct.pack("<II", self.compressed,
+                                                            self.uncompressed) + self.block)
+        self.assertRefused(path, "but POINTS 153600")
+
+    def test_corrupted_compressed_size(self):
+        # finding 2: 9 corrupted bytes made PCL allocate 8.2 GB
+        path = self.write("size.pcd", self.header + b"\xf0\xff\xff\xff" +
+                          struct.pack("<I", self.uncompressed) + self.block)
+        self.assertRefused(path, "(truncated)")
+        path = self.write("usize.pcd", self.header + struct.pack("<I", self.compressed) +
+                          b"\xff\xff\xff\xf0" + self.block)
+        self.assertRefused(path, "compressed block decompresses to 4043309055 bytes")
+
+    def test_points_above_the_cap(self):
+        # finding 2: POINTS 99,999,999 cost 3.6 GB (compressed) and 1.24 GB (ascii), exit 0
+        header = with_header(self.header, WIDTH=b"99999999", HEIGHT=b"1", POINTS=b"99999999")
+        path = self.write("huge.pcd", header + struct.pack("<II", self.compressed,
+                                                           self.uncompressed) + self.block)
+        self.assertRefused(path, "POINTS 99999999 is above the limit of 4000000 (--max-points)")
+        ascii_path = os.path.join(self.tmp, "huge_ascii.pcd")
+        write_pcd(ascii_path, ["x", "y", "z"], [(0, 0, 1)] * 3)
+        with open(ascii_path) as f:
+            text = f.read().replace("POINTS 3", "POINTS 99999999").replace("WIDTH 3",
+                                                                           "WIDTH 99999999")
+        self.assertRefused(self.write("huge_ascii.pcd", text.encode()), "above the limit")
+
+    def test_max_points_option(self):
+        code, out, err = run("--max-points", "1000", os.path.join(DATA, "learn0.pcd"))
+        self.assertEqual(code, 2, err)
+        self.assertIn("POINTS 307200 is above the limit of 1000", err)
+        code, out, err = run("--max-points", "lots", os.path.join(DATA, "learn0.pcd"))
+        self.assertEqual(code, 2, err)
+        self.assertIn("--max-points wants a positive integer, got 'lots'", err)
+
+    def test_ascii_garbage_line(self):
+        # finding 4: garbage lines were skipped without a word
+        path = os.path.join(self.tmp, "garbage_line.pcd")
+        write_pcd(path, ["x", "y", "z"], [(0, 0, 1), ("hello", "world", "!"), (1, 0, 1)])
+        self.assertRefused(path, "data line 2: 'hello' is not a number")
+
+    def test_truncated_binary(self):
+        path = os.path.join(self.tmp, "binary.pcd")
+        rows = [(0.1 * i, 0.0, 1.0) for i in range(10)]
+        with open(path, "wb") as f:
+            f.write(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nPOINTS 10\nDATA binary\n")
+            f.write(b"".join(struct.pack("<fff", *r) for r in rows)[:-7])
+        self.assertRefused(path, "binary data of 113 bytes, but POINTS 10 x 12 bytes = 120")
 
 
 class Processed(unittest.TestCase):
@@ -130,6 +254,29 @@ class Processed(unittest.TestCase):
         radius = mug.get("radius", (mug.get("radius_bottom", 0) + mug.get("radius_top", 0)) / 2)
         self.assertGreater(radius, 0.035, mug)
         self.assertLess(radius, 0.045, mug)
+
+    def test_float64_coordinates_are_read(self):
+        # finding 4: float64 x y z gave "no table" and exit 0; now they are converted, and the
+        # scene's boxes come out as from the float32 file
+        header, compressed, uncompressed, block = compressed_parts(os.path.join(DATA,
+                                                                                "learn0.pcd"))
+        float32 = self.run_json("--up", "auto", os.path.join(DATA, "learn0.pcd"))
+        # rewrite learn0's x y z as float64 in an uncompressed binary file
+        path = os.path.join(self.tmp, "learn0_f64.pcd")
+        lzf = lzf_decompress(block[:compressed], uncompressed)
+        n = 307200
+        columns = [lzf[i * 4 * n:(i + 1) * 4 * n] for i in range(5)]  # label x y z rgba
+        xyz = [struct.unpack("<%df" % n, columns[i]) for i in (1, 2, 3)]
+        packed = struct.pack("<%dd" % (3 * n), *[v for p in zip(*xyz) for v in p])
+        with open(path, "wb") as f:
+            f.write(b"VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\n"
+                    b"WIDTH 640\nHEIGHT 480\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 307200\n"
+                    b"DATA binary\n")
+            f.write(packed)
+        float64 = self.run_json("--up", "auto", path)
+        self.assertEqual(float64["status"], "ok")
+        self.assertEqual(float64["table"], float32["table"])
+        self.assertEqual(len(float64["objects"]), len(float32["objects"]))
 
     def test_config_changes_the_result(self):
         cfg = os.path.join(self.tmp, "huge_min_cluster.yaml")
