@@ -19,6 +19,39 @@ const sensor_msgs::PointField* findField(const sensor_msgs::PointCloud2& msg, co
   return field == msg.fields.end() ? nullptr : &*field;
 }
 
+// Reads little-endian values from a buffer, never past its end.
+class BoundedReader {
+ public:
+  BoundedReader(const uint8_t* data, size_t size) : data_(data), left_(size) {}
+  template <typename T>
+  bool read(T& value) {
+    if (left_ < sizeof(T)) return false;
+    std::memcpy(&value, data_, sizeof(T));
+    data_ += sizeof(T);
+    left_ -= sizeof(T);
+    return true;
+  }
+  // A length-prefixed byte sequence (string or uint8[]).
+  template <typename Bytes>
+  bool readBytes(Bytes& bytes) {
+    uint32_t length = 0;
+    if (!read(length) || length > left_) return false;
+    bytes.assign(data_, data_ + length);
+    data_ += length;
+    left_ -= length;
+    return true;
+  }
+  // An array length, checked against the bytes left for elements of at least `min_bytes`.
+  bool readCount(uint32_t& count, size_t min_bytes) {
+    return read(count) && count <= left_ / min_bytes;
+  }
+  size_t left() const { return left_; }
+
+ private:
+  const uint8_t* data_;
+  size_t left_;
+};
+
 using CloudCallbackParameter = const boost::shared_ptr<const InputCloud>&;
 
 // roscpp calls deserialize() only for a message that did not arrive as an InputCloud object
@@ -27,23 +60,22 @@ using CloudCallbackParameter = const boost::shared_ptr<const InputCloud>&;
 class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackParameter> {
  public:
   InputCloudHelper(const std::function<void(CloudCallbackParameter)>& on_cloud,
-                   const std::function<void(const std::string&)>& on_invalid)
+                   const InvalidCloudCallback& on_invalid, uint64_t max_points)
       : ros::SubscriptionCallbackHelperT<CloudCallbackParameter>(on_cloud),
-        on_invalid_(on_invalid) {}
+        on_invalid_(on_invalid),
+        max_points_(max_points) {}
 
   ros::VoidConstPtr deserialize(
       const ros::SubscriptionCallbackHelperDeserializeParams& params) override {
     sensor_msgs::PointCloud2 msg;
-    try {
-      ros::serialization::IStream stream(params.buffer, params.length);
-      ros::serialization::deserialize(stream, msg);
-    } catch (const ros::Exception& e) {
-      on_invalid_(std::string("unreadable message: ") + e.what());
+    const std::string unreadable = deserializeCloud(params.buffer, params.length, msg);
+    if (!unreadable.empty()) {
+      on_invalid_(msg.header, "unreadable message: " + unreadable);
       return {};
     }
-    const std::string invalid = invalidCloudReason(msg);
+    const std::string invalid = invalidCloudReason(msg, max_points_);
     if (!invalid.empty()) {
-      on_invalid_(invalid);
+      on_invalid_(msg.header, invalid);
       return {};
     }
     auto cloud = boost::make_shared<InputCloud>();
@@ -52,12 +84,50 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
   }
 
  private:
-  std::function<void(const std::string&)> on_invalid_;
+  InvalidCloudCallback on_invalid_;
+  uint64_t max_points_;
 };
 
 }  // namespace
 
-std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg) {
+std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg) {
+  BoundedReader in(data, size);
+  // A field takes at least 13 bytes: name length, offset, datatype, count.
+  uint32_t fields = 0;
+  if (!in.read(msg.header.seq) || !in.read(msg.header.stamp.sec) ||
+      !in.read(msg.header.stamp.nsec) || !in.readBytes(msg.header.frame_id) ||
+      !in.read(msg.height) || !in.read(msg.width) || !in.readCount(fields, 13)) {
+    return "header cut short";
+  }
+  msg.fields.resize(fields);
+  for (sensor_msgs::PointField& field : msg.fields) {
+    if (!in.readBytes(field.name) || !in.read(field.offset) || !in.read(field.datatype) ||
+        !in.read(field.count)) {
+      return "fields cut short";
+    }
+  }
+  if (!in.read(msg.is_bigendian) || !in.read(msg.point_step) || !in.read(msg.row_step)) {
+    return "steps cut short";
+  }
+  if (!in.readBytes(msg.data)) return "data cut short (its length exceeds the message)";
+  if (!in.read(msg.is_dense)) return "is_dense missing";
+  if (in.left() != 0) return std::to_string(in.left()) + " bytes after the cloud";
+  return "";
+}
+
+std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max_points) {
+  const auto str = [](uint64_t value) { return std::to_string(value); };
+  // Sizes first, before anything walks the data: a 108-byte message declaring width 0 and
+  // height 2^32-1 once stalled the chain for seconds.
+  const uint64_t points = static_cast<uint64_t>(msg.width) * msg.height;
+  if (points == 0 && (msg.width > 1 || msg.height > 1)) {
+    return "width " + str(msg.width) + " x height " + str(msg.height) +
+           ": an empty cloud is 0 x 0, 0 x 1 or 1 x 0";
+  }
+  if (points > max_points) {
+    return str(points) + " points (" + str(msg.width) + " x " + str(msg.height) +
+           ") is above max_points " + str(max_points);
+  }
   if (msg.is_bigendian) return "big-endian data";
   for (const char* axis : {"x", "y", "z"}) {
     const sensor_msgs::PointField* field = findField(msg, axis);
@@ -65,11 +135,23 @@ std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg) {
     if (field->datatype != sensor_msgs::PointField::FLOAT32) {
       return std::string("field '") + axis + "' is not FLOAT32";
     }
-    if (field->offset + 4 > msg.point_step) return std::string("field '") + axis + "' overflows";
+    if (static_cast<uint64_t>(field->offset) + 4 > msg.point_step) {
+      return std::string("field '") + axis + "' at offset " + str(field->offset) +
+             " overflows point_step " + str(msg.point_step);
+    }
   }
-  if (static_cast<uint64_t>(msg.row_step) * msg.height > msg.data.size() ||
-      static_cast<uint64_t>(msg.point_step) * msg.width > msg.row_step) {
-    return "data shorter than width x height x point_step";
+  if (static_cast<uint64_t>(msg.point_step) * msg.width > msg.row_step) {
+    return "row_step " + str(msg.row_step) + " is shorter than width " + str(msg.width) +
+           " x point_step " + str(msg.point_step);
+  }
+  const uint64_t declared = static_cast<uint64_t>(msg.row_step) * msg.height;
+  if (declared > msg.data.size()) {
+    return "data shorter than declared: " + str(msg.data.size()) + " bytes, row_step " +
+           str(msg.row_step) + " x height " + str(msg.height) + " = " + str(declared);
+  }
+  if (declared < msg.data.size()) {
+    return "data longer than declared: " + str(msg.data.size()) + " bytes, row_step " +
+           str(msg.row_step) + " x height " + str(msg.height) + " = " + str(declared);
   }
   return "";
 }
@@ -103,11 +185,11 @@ void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud) {
 ros::Subscriber subscribeInputCloud(
     ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
     const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const std::function<void(const std::string&)>& on_invalid) {
+    const InvalidCloudCallback& on_invalid, uint64_t max_points) {
   ros::SubscribeOptions options;
   // Topic type and checksum are PointCloud2's (pcl_ros's traits); the helper does the rest.
   options.init<InputCloud>(topic, queue_size, on_cloud);
-  options.helper = boost::make_shared<InputCloudHelper>(on_cloud, on_invalid);
+  options.helper = boost::make_shared<InputCloudHelper>(on_cloud, on_invalid, max_points);
   return node.subscribe(options);
 }
 

@@ -6,6 +6,8 @@
 //   clusters (pcl::PointCloud<pcl::PointXYZL>): every clustered point, label = cluster index,
 //     largest cluster first (label 0); empty when there is none
 //   clusters_colored (pcl::PointCloud<pcl::PointXYZRGB>), only while someone subscribes
+// The clusters' header.seq numbers the frames published, so that ShapeEstimation counts the
+// frames it drops.
 // Parameters: cfg/Clustering.cfg (dynamic_reconfigure); ~queue_size (int, 5).
 #include "tabletop_shapes/core/clustering.h"
 #include "tabletop_shapes/ros/conversions.h"
@@ -61,6 +63,7 @@ class ClusteringNodelet : public nodelet::Nodelet {
   void onFrame(const TableConstPtr& table, const boost::shared_ptr<const Cloud>& cloud) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(cloud.get());
+    monitor_->countSequence(cloud->header.seq);
     ClusteringParams params;
     {
       std::lock_guard<std::mutex> lock(params_mutex_);
@@ -73,6 +76,7 @@ class ClusteringNodelet : public nodelet::Nodelet {
 
     auto labeled = boost::make_shared<LabeledCloud>();
     labeled->header = cloud->header;
+    labeled->header.seq = ++published_;
     for (size_t label = 0; label < clusters.size(); ++label) {
       for (const Point& p : clusters[label]->points) {
         pcl::PointXYZL point;
@@ -112,6 +116,7 @@ class ClusteringNodelet : public nodelet::Nodelet {
   std::unique_ptr<dynamic_reconfigure::Server<ClusteringConfig>> reconfigure_;
   std::mutex params_mutex_;
   ClusteringParams params_;
+  uint32_t published_ = 0;  // frames published: the seq of ShapeEstimation's input
   ros::Publisher clusters_publisher_, colored_publisher_;
   message_filters::Subscriber<Table> table_subscriber_;
   message_filters::Subscriber<Cloud> cloud_subscriber_;

@@ -104,7 +104,10 @@ std::string format(const char* pattern, double a, double b = 0, double c = 0) {
 Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
   Table msg;
   msg.header = header;
-  if (!table.found) return msg;
+  if (!table.found) {
+    msg.reason = table.reason.empty() ? "no table found" : table.reason;
+    return msg;
+  }
   const Eigen::Vector4f coefficients = table.plane.coefficients();
   for (int i = 0; i < 4; ++i) msg.coefficients[i] = coefficients[i];
   msg.inliers = static_cast<uint32_t>(std::max(table.inliers, 1));
@@ -116,6 +119,14 @@ Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
     msg.hull.points.push_back(point);
   }
   return msg;
+}
+
+Objects skippedFrameObjects(const std_msgs::Header& header, const std::string& reason) {
+  Objects objects;
+  objects.header = header;
+  objects.table.header = header;
+  objects.reason = reason;
+  return objects;
 }
 
 Plane planeFromMsg(const Table& table) {

@@ -239,6 +239,7 @@ class OpenNI2DriverNodelet : public nodelet::Nodelet {
   uint64_t depth_us_ = 0;
   ros::Time depth_stamp_;
   bool depth_pending_ = false;
+  uint32_t clouds_published_ = 0;  // header.seq: Preprocess counts the clouds it drops
   std::vector<uint8_t> rgb_;
   int rgb_width_ = 0, rgb_height_ = 0;
   uint64_t rgb_us_ = 0;
@@ -680,6 +681,7 @@ void OpenNI2DriverNodelet::publishCloud() {
   const PinholeIntrinsics& intrinsics = depth_.intrinsics;
   std_msgs::Header header;
   header.stamp = depth_stamp_;
+  header.seq = ++clouds_published_;
   if (with_color) {
     auto cloud = boost::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
     depthToCloud(depth_mm_.data(), intrinsics, rgb_.data(), rgb_width_, rgb_height_, *cloud);

@@ -2,16 +2,22 @@
 // optional; a driver, a bag, another camera) -> range-limited, voxel-downsampled XYZ cloud.
 // Subscribes: input (sensor_msgs/PointCloud2; an XYZRGB cloud of a nodelet in the same manager,
 //             such as OpenNI2Driver's, arrives without a copy: see ros/cloud_input.h)
-// Publishes:  preprocessed (pcl::PointCloud<pcl::PointXYZ>, shared with the next nodelet)
-// Parameters: cfg/Preprocess.cfg (dynamic_reconfigure); ~queue_size (int, 1).
+// Publishes:  preprocessed (pcl::PointCloud<pcl::PointXYZ>, shared with the next nodelet;
+//             header.seq numbers the frames, so that the next stage counts the ones it drops)
+//             objects (tabletop_shapes/Objects) for a frame skipped here, with the reason
+// Parameters: cfg/Preprocess.cfg (dynamic_reconfigure); ~queue_size (int, 1);
+//             ~max_points (int, 4000000): larger clouds are skipped with a warning.
+#include "tabletop_shapes/core/pcd_reader.h"
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/ros/cloud_input.h"
+#include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/PreprocessConfig.h"
 
 #include <dynamic_reconfigure/server.h>
 #include <nodelet/nodelet.h>
+#include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -40,18 +46,40 @@ class PreprocessNodelet : public nodelet::Nodelet {
       params_ = params.preprocess;
     });
     publisher_ = node.advertise<Cloud>("preprocessed", 1);
+    skipped_publisher_ = node.advertise<Objects>("objects", 5);
     const int queue_size = private_node.param("queue_size", 1);
+    const int max_points = private_node.param("max_points", static_cast<int>(kDefaultMaxPoints));
+    if (max_points < 1) {
+      NODELET_ERROR("~max_points must be positive, got %d; using %d", max_points,
+                    static_cast<int>(kDefaultMaxPoints));
+    }
+    max_points_ = max_points < 1 ? kDefaultMaxPoints : static_cast<uint64_t>(max_points);
     subscriber_ = bridge::subscribeInputCloud(
         node, "input", queue_size, [this](const auto& cloud) { onCloud(cloud); },
-        [this](const std::string& invalid) {
-          monitor_->frameSkipped(
-              invalid, {bridge::Problem::Level::Error, "skipping input cloud: " + invalid, {}});
-        });
+        [this](const std_msgs::Header& header, const std::string& invalid) {
+          skip(header, invalid);
+        },
+        max_points_);
+  }
+
+  // A frame without output: reported, and answered on `objects` so that a consumer waiting
+  // there hears of every frame.
+  void skip(const std_msgs::Header& header, const std::string& reason) {
+    monitor_->frameSkipped(reason,
+                           {bridge::Problem::Level::Error, "skipping input cloud: " + reason, {}});
+    skipped_publisher_.publish(bridge::skippedFrameObjects(header, "invalid cloud: " + reason));
   }
 
   void onCloud(const boost::shared_ptr<const bridge::InputCloud>& input) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(input.get());
+    monitor_->countSequence(input->header.seq);
+    if (input->size() > max_points_) {  // a cloud handed over by pointer was not checked yet
+      skip(pcl_conversions::fromPCL(input->header), std::to_string(input->size()) +
+                                                        " points is above max_points " +
+                                                        std::to_string(max_points_));
+      return;
+    }
     {
       std::lock_guard<std::mutex> lock(params_mutex_);
       preprocessor_.setParams(params_);  // a reconfigured value applies from this frame on
@@ -66,6 +94,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
                                            " input points is finite and within max_range";
       monitor_->frameWithoutResult(reason, {bridge::Problem::Level::Warn, reason, {}});
     }
+    output->header.seq = ++published_;
     boost::shared_ptr<const Cloud> shared = output;
     bridge::markPublished(shared);
     publisher_.publish(shared);
@@ -78,7 +107,9 @@ class PreprocessNodelet : public nodelet::Nodelet {
   std::mutex params_mutex_;
   PreprocessParams params_;
   Preprocessor preprocessor_;  // keeps its buffers between frames
-  ros::Publisher publisher_;
+  uint64_t max_points_ = kDefaultMaxPoints;
+  uint32_t published_ = 0;  // frames published: the seq of the next stage's input
+  ros::Publisher publisher_, skipped_publisher_;
   ros::Subscriber subscriber_;
 };
 

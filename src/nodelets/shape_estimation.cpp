@@ -2,7 +2,9 @@
 // Subscribes: table (tabletop_shapes/Table) and clusters (pcl::PointCloud<pcl::PointXYZL>),
 //   paired by their identical stamps (exact time).
 // Publishes, once per frame (also when nothing was found):
-//   objects (tabletop_shapes/Objects)
+//   objects (tabletop_shapes/Objects); `reason` says why there is no result (no table, no
+//     transform to output_frame; then in the cloud's frame). Preprocess and TableSegmentation
+//     publish it too for the frames they skip, so every frame taken in gets one.
 //   markers (visualization_msgs/MarkerArray): solids, labels, table hull; stale ones deleted
 //   cubes / cylinders / cones (tabletop_shapes/Cube, Cylinder, Cone): one message per object,
 //     only while someone subscribes
@@ -78,6 +80,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
   void onFrame(const TableConstPtr& table, const boost::shared_ptr<const LabeledCloud>& clusters) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(clusters.get());
+    monitor_->countSequence(clusters->header.seq);
     {
       std::lock_guard<std::mutex> lock(params_mutex_);
       estimator_.setParams(params_);
@@ -86,6 +89,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     objects.header = pcl_conversions::fromPCL(clusters->header);
     objects.table = *table;
     objects.table_found = bridge::tableFound(*table);
+    if (!objects.table_found) objects.reason = "no table: " + table->reason;
     if (objects.table_found) {
       const Plane plane = bridge::planeFromMsg(*table);
       for (const CloudPtr& cluster : splitClusters(*clusters)) {
@@ -109,6 +113,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
         // tf's text holds times: throttle on the frames, not on the whole text.
         monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
                                         "no transform to " + output_frame_});
+        objects_publisher_.publish(bridge::skippedFrameObjects(objects.header, reason));
         return;
       }
     }

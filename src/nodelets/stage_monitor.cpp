@@ -2,9 +2,12 @@
 
 #include <boost/weak_ptr.hpp>
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <malloc.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <deque>
+#include <fstream>
 #include <sstream>
 
 namespace tabletop_shapes {
@@ -37,6 +40,29 @@ diagnostic_msgs::KeyValue keyValue(const std::string& key, T value) {
   return keyValue(key, text.str());
 }
 
+// The process's resident memory (all nodelets of a manager together), from /proc.
+double residentMegabytes() {
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);) {
+    if (line.compare(0, 6, "VmRSS:") == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  }
+  return 0.0;
+}
+
+// After a burst (a cloud of millions of points, processed or refused) glibc keeps the freed
+// memory in its arenas for good: the manager stayed at 490-600 MB instead of ~110 MB. When the
+// process is far above its usual size, give the free memory back. Returns the RSS after.
+double releaseMemoryAfterBurst(double& usual_mb) {
+  constexpr double kBurstMb = 48.0;
+  double rss = residentMegabytes();
+  if (usual_mb > 0.0 && rss > usual_mb + kBurstMb) {
+    malloc_trim(0);
+    rss = residentMegabytes();
+  }
+  usual_mb = usual_mb > 0.0 ? usual_mb + 0.05 * (rss - usual_mb) : rss;  // follows slowly
+  return rss;
+}
+
 }  // namespace
 
 void markPublished(const boost::shared_ptr<const void>& cloud) {
@@ -62,6 +88,12 @@ void StageMonitor::countInput(const void* cloud) {
   const bool shared = wasPublishedInProcess(cloud);
   std::lock_guard<std::mutex> lock(mutex_);
   ++(shared ? inputs_shared_ : inputs_copied_);
+}
+
+void StageMonitor::countSequence(uint32_t seq) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (seq > last_seq_ && last_seq_ > 0) dropped_ += seq - last_seq_ - 1;
+  last_seq_ = seq;
 }
 
 void StageMonitor::frameDone(double milliseconds, size_t points_in, size_t points_out) {
@@ -147,7 +179,9 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
                      keyValue("input clouds copied", inputs_copied_),
                      keyValue("last skip reason", last_skip_reason_),
                      keyValue("frames without result", without_result_),
-                     keyValue("last no-result reason", last_no_result_reason_)};
+                     keyValue("last no-result reason", last_no_result_reason_),
+                     keyValue("frames dropped at input queue", dropped_),
+                     keyValue("process RSS [MB]", releaseMemoryAfterBurst(usual_rss_mb_))};
     window_frames_ = window_skipped_ = window_without_result_ = 0;
     window_sum_ms_ = window_max_ms_ = 0.0;
   }

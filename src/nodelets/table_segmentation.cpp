@@ -6,6 +6,9 @@
 //   table (tabletop_shapes/Table; inliers == 0 when no table was found)
 //   objects_cloud (pcl::PointCloud<pcl::PointXYZ>; empty when no table was found)
 //   table_inliers (pcl::PointCloud<pcl::PointXYZ>), only while someone subscribes
+//   objects (tabletop_shapes/Objects) for a frame skipped here (no up transform), with the reason
+// The objects cloud's header.seq numbers the frames published, so that Clustering counts the
+// frames it drops.
 // Parameters: cfg/TableSegmentation.cfg (dynamic_reconfigure), and "up":
 //   ~up_frame (string, ""): a frame whose +z is up (e.g. base_link), looked up with tf2 at the
 //     cloud's stamp; a missing transform skips the frame with a throttled warning
@@ -71,6 +74,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     table_publisher_ = node.advertise<Table>("table", 5);
     objects_publisher_ = node.advertise<Cloud>("objects_cloud", 5);
     inliers_publisher_ = node.advertise<Cloud>("table_inliers", 1);
+    skipped_publisher_ = node.advertise<Objects>("objects", 5);
     const int queue_size = private_node.param("queue_size", 1);
     subscriber_ =
         node.subscribe("preprocessed", queue_size, &TableSegmentationNodelet::onCloud, this);
@@ -96,6 +100,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       // tf's text holds times: throttle on the frames, not on the whole text.
       monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
                                       "no transform from " + up_frame_});
+      skipped_publisher_.publish(bridge::skippedFrameObjects(header, reason));
       return false;
     }
   }
@@ -103,6 +108,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   void onCloud(const boost::shared_ptr<const Cloud>& cloud) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(cloud.get());
+    monitor_->countSequence(cloud->header.seq);
     TableParams params;
     {
       std::lock_guard<std::mutex> lock(params_mutex_);
@@ -123,6 +129,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
                                            ? pcl::ros_ptr(result.object_points)
                                            : boost::make_shared<Cloud>();
     objects->header = cloud->header;
+    objects->header.seq = ++published_;
     if (inliers_publisher_.getNumSubscribers() > 0 && result.table_points) {
       boost::shared_ptr<Cloud> inliers = pcl::ros_ptr(result.table_points);
       inliers->header = cloud->header;
@@ -150,7 +157,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   std::unique_ptr<dynamic_reconfigure::Server<TableSegmentationConfig>> reconfigure_;
   std::mutex params_mutex_;
   TableParams params_;
-  ros::Publisher table_publisher_, objects_publisher_, inliers_publisher_;
+  uint32_t published_ = 0;  // frames published: the seq of Clustering's input
+  ros::Publisher table_publisher_, objects_publisher_, inliers_publisher_, skipped_publisher_;
   ros::Subscriber subscriber_;
 };
 

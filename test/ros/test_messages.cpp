@@ -108,9 +108,13 @@ TEST(Messages, EmptyObjectsRoundTrip) {
   tabletop_shapes::Objects in;
   in.header.frame_id = "base_link";
   in.table_found = false;
+  in.reason = "no table: no plane with 500 inliers within 10 deg of up";
+  in.table.reason = "no plane with 500 inliers within 10 deg of up";
   const tabletop_shapes::Objects out = roundTrip(in);
   EXPECT_TRUE(in == out);
   EXPECT_FALSE(out.table_found);
+  EXPECT_EQ(out.reason, in.reason);
+  EXPECT_EQ(out.table.reason, in.table.reason);
   EXPECT_TRUE(out.cubes.empty() && out.cylinders.empty() && out.cones.empty());
 }
 

@@ -20,18 +20,30 @@ namespace bridge {
 
 using InputCloud = pcl::PointCloud<pcl::PointXYZRGB>;
 
-// Empty when `msg` can be read as little-endian x y z floats, else why not.
-std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg);
+// A serialised sensor_msgs/PointCloud2 read into `msg`, every length checked against the bytes
+// present before anything is allocated (roscpp's deserializer resizes a vector to the length
+// a message claims, so 20 bytes could ask for 4 GB). Empty on success, else what is wrong.
+std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg);
+
+// Empty when `msg` can be read as little-endian x y z floats, else why not: sizes that do not
+// add up (width x height x point_step, row_step, the data's length, exactly), more than
+// `max_points` points, missing or non-float32 x y z. Checks the sizes before any loop over
+// the data, so a refusal costs no more than the message's length.
+std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max_points);
 
 // x y z (and rgb when the message has it) of a valid `msg`; layout and header kept.
 void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud);
 
+// The header of a refused cloud (default-constructed when even it was unreadable), and why.
+using InvalidCloudCallback = std::function<void(const std_msgs::Header&, const std::string&)>;
+
 // `on_cloud` gets every valid cloud, `on_invalid` the reason a cloud was refused; both run on
-// the node's callback queue.
+// the node's callback queue. A cloud handed over by pointer is not checked here: its size
+// against max_points is the caller's to check.
 ros::Subscriber subscribeInputCloud(
     ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
     const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const std::function<void(const std::string&)>& on_invalid);
+    const InvalidCloudCallback& on_invalid, uint64_t max_points);
 
 }  // namespace bridge
 }  // namespace tabletop_shapes

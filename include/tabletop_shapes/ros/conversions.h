@@ -23,6 +23,9 @@ Table toTableMsg(const TableResult& table, const std_msgs::Header& header);
 inline bool tableFound(const Table& table) { return table.inliers > 0; }
 Plane planeFromMsg(const Table& table);
 
+// The objects message of a frame a stage skipped: no table, no objects, the reason.
+Objects skippedFrameObjects(const std_msgs::Header& header, const std::string& reason);
+
 // Re-expresses everything in `objects` (poses, table plane and hull, unfitted centroids) in
 // `target_frame`, given the transform target <- current frame; every header gets the frame.
 void transformObjects(const Eigen::Isometry3d& target_from_source, const std::string& target_frame,

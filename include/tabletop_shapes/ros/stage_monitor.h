@@ -50,6 +50,11 @@ class StageMonitor {
 
   // Counts a cloud received from the previous stage as shared (zero-copy) or copied.
   void countInput(const void* cloud);
+  // Frames dropped at this stage's input queue: every stage numbers the frames it publishes
+  // (the cloud header's seq, 1, 2, 3, ...), so a gap in the numbers the next stage receives is
+  // the count it lost. A number at or below the last one (a restart, a looped bag, a publisher
+  // that does not number its frames) starts the count afresh.
+  void countSequence(uint32_t seq);
   // One frame fully processed in `milliseconds`.
   void frameDone(double milliseconds, size_t points_in, size_t points_out);
   // A frame dropped without output (missing transform, invalid cloud), with the reason shown
@@ -69,6 +74,9 @@ class StageMonitor {
   std::mutex mutex_;
   // totals
   uint64_t frames_ = 0, skipped_ = 0, without_result_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
+  uint64_t dropped_ = 0;
+  uint32_t last_seq_ = 0;
+  double usual_rss_mb_ = 0.0;  // the process's RSS, slowly averaged
   double last_ms_ = 0.0;
   size_t last_points_in_ = 0, last_points_out_ = 0;
   std::string last_skip_reason_, last_no_result_reason_;

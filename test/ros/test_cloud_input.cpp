@@ -1,0 +1,162 @@
+// PointCloud2 -> the chain's input cloud, without a master: every malformed size is refused
+// with its reason before any loop over the data (issue 16, findings 3 and 4), and a valid
+// cloud is read exactly.
+#include "tabletop_shapes/ros/cloud_input.h"
+
+#include <gtest/gtest.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+
+#include <chrono>
+#include <cstring>
+#include <limits>
+
+namespace tabletop_shapes {
+namespace {
+
+using bridge::invalidCloudReason;
+constexpr uint64_t kCap = 4000000;
+
+sensor_msgs::PointCloud2 xyzCloud(uint32_t width, uint32_t height) {
+  sensor_msgs::PointCloud2 cloud;
+  sensor_msgs::PointCloud2Modifier modifier(cloud);
+  modifier.setPointCloud2FieldsByString(1, "xyz");  // point_step 16
+  modifier.resize(static_cast<size_t>(width) * height);
+  cloud.width = width;
+  cloud.height = height;
+  cloud.row_step = width * cloud.point_step;
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+  for (uint32_t i = 0; i < width * height; ++i, ++x, ++y, ++z) {
+    *x = 0.01f * i;
+    *y = -0.5f;
+    *z = 1.0f + 0.001f * i;
+  }
+  return cloud;
+}
+
+TEST(CloudInput, ValidCloudIsReadExactly) {
+  sensor_msgs::PointCloud2 msg = xyzCloud(4, 3);
+  msg.header.frame_id = "camera";
+  msg.header.seq = 42;
+  ASSERT_EQ(invalidCloudReason(msg, kCap), "");
+  bridge::InputCloud cloud;
+  bridge::readInputCloud(msg, cloud);
+  ASSERT_EQ(cloud.size(), 12u);
+  EXPECT_EQ(cloud.width, 4u);
+  EXPECT_EQ(cloud.height, 3u);
+  EXPECT_EQ(cloud.header.seq, 42u);
+  EXPECT_EQ(cloud.header.frame_id, "camera");
+  EXPECT_FLOAT_EQ(cloud.points[11].x, 0.11f);
+  EXPECT_FLOAT_EQ(cloud.points[11].z, 1.011f);
+  EXPECT_EQ(invalidCloudReason(xyzCloud(0, 1), kCap), "") << "the empty cloud";
+  EXPECT_EQ(invalidCloudReason(xyzCloud(0, 0), kCap), "");
+}
+
+// Finding 3: 108 bytes with width 0, height 2^32-1 and row_step 0 stalled the chain 5-12 s.
+TEST(CloudInput, EmptyCloudWithBillionsOfRowsIsRefusedAtOnce) {
+  sensor_msgs::PointCloud2 msg = xyzCloud(0, 1);
+  msg.height = std::numeric_limits<uint32_t>::max();
+  msg.row_step = 0;
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(invalidCloudReason(msg, kCap),
+            "width 0 x height 4294967295: an empty cloud is 0 x 0, 0 x 1 or 1 x 0");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.01);
+}
+
+// Finding 4: 100 x 100 declared, 4.9 MB carried, read without comment.
+TEST(CloudInput, DataLongerOrShorterThanDeclaredIsRefused) {
+  sensor_msgs::PointCloud2 longer = xyzCloud(100, 100);
+  longer.data.resize(4900000);
+  EXPECT_EQ(invalidCloudReason(longer, kCap),
+            "data longer than declared: 4900000 bytes, row_step 1600 x height 100 = 160000");
+  sensor_msgs::PointCloud2 shorter = xyzCloud(100, 100);
+  shorter.data.resize(100);
+  EXPECT_EQ(invalidCloudReason(shorter, kCap),
+            "data shorter than declared: 100 bytes, row_step 1600 x height 100 = 160000");
+}
+
+TEST(CloudInput, MalformedStepsAreRefused) {
+  sensor_msgs::PointCloud2 row = xyzCloud(10, 10);
+  row.row_step = 10;
+  EXPECT_EQ(invalidCloudReason(row, kCap), "row_step 10 is shorter than width 10 x point_step 16");
+  sensor_msgs::PointCloud2 point = xyzCloud(10, 10);
+  point.point_step = 4;
+  EXPECT_EQ(invalidCloudReason(point, kCap), "field 'y' at offset 4 overflows point_step 4");
+  sensor_msgs::PointCloud2 zero = xyzCloud(10, 10);
+  zero.point_step = 0;
+  zero.row_step = 0;
+  EXPECT_EQ(invalidCloudReason(zero, kCap), "field 'x' at offset 0 overflows point_step 0");
+  sensor_msgs::PointCloud2 overflow = xyzCloud(10, 10);  // row_step x height past 2^32
+  overflow.row_step = 0x80000000u;
+  EXPECT_EQ(invalidCloudReason(overflow, kCap),
+            "data shorter than declared: 1600 bytes, row_step 2147483648 x height 10 = "
+            "21474836480");
+}
+
+TEST(CloudInput, FieldsAreChecked) {
+  sensor_msgs::PointCloud2 no_z = xyzCloud(2, 1);
+  no_z.fields.pop_back();
+  EXPECT_EQ(invalidCloudReason(no_z, kCap), "no field 'z'");
+  sensor_msgs::PointCloud2 float64 = xyzCloud(2, 1);
+  float64.fields[1].datatype = sensor_msgs::PointField::FLOAT64;
+  EXPECT_EQ(invalidCloudReason(float64, kCap), "field 'y' is not FLOAT32");
+  sensor_msgs::PointCloud2 big_endian = xyzCloud(2, 1);
+  big_endian.is_bigendian = true;
+  EXPECT_EQ(invalidCloudReason(big_endian, kCap), "big-endian data");
+}
+
+// 5 million points: refused from the sizes alone, before a point is read.
+TEST(CloudInput, PointsAboveTheCapAreRefused) {
+  sensor_msgs::PointCloud2 msg = xyzCloud(0, 1);
+  msg.width = 2500;
+  msg.height = 2000;
+  EXPECT_EQ(invalidCloudReason(msg, kCap),
+            "5000000 points (2500 x 2000) is above max_points 4000000");
+  EXPECT_EQ(invalidCloudReason(xyzCloud(30, 20), 599),
+            "600 points (30 x 20) is above max_points 599");
+  EXPECT_EQ(invalidCloudReason(xyzCloud(30, 20), 600), "");
+}
+
+std::vector<uint8_t> serialize(const sensor_msgs::PointCloud2& msg) {
+  std::vector<uint8_t> bytes(ros::serialization::serializationLength(msg));
+  ros::serialization::OStream stream(bytes.data(), bytes.size());
+  ros::serialization::serialize(stream, msg);
+  return bytes;
+}
+
+TEST(CloudInput, DeserializesWhatRoscppSerializes) {
+  sensor_msgs::PointCloud2 msg = xyzCloud(5, 2);
+  msg.header.frame_id = "camera";
+  msg.header.stamp = ros::Time(12, 345);
+  const std::vector<uint8_t> bytes = serialize(msg);
+  sensor_msgs::PointCloud2 read;
+  ASSERT_EQ(bridge::deserializeCloud(bytes.data(), bytes.size(), read), "");
+  EXPECT_EQ(serialize(read), bytes);
+  EXPECT_EQ(read.header.stamp, ros::Time(12, 345));
+  EXPECT_EQ(read.fields.size(), 3u);
+}
+
+// roscpp's own deserializer resizes to the claimed length before it checks the bytes: a few
+// bytes claiming 4 GB of data are refused here without allocating.
+TEST(CloudInput, ClaimedLengthsBeyondTheMessageAreRefused) {
+  const sensor_msgs::PointCloud2 msg = xyzCloud(5, 2);
+  std::vector<uint8_t> bytes = serialize(msg);
+  sensor_msgs::PointCloud2 read;
+  const size_t data_length_at = bytes.size() - 1 - msg.data.size() - 4;
+  std::memset(&bytes[data_length_at], 0xff, 4);
+  EXPECT_EQ(bridge::deserializeCloud(bytes.data(), bytes.size(), read),
+            "data cut short (its length exceeds the message)");
+  std::vector<uint8_t> fields = serialize(msg);
+  std::memset(&fields[4 + 8 + 4 + 8], 0xff, 4);  // after seq, stamp, frame_id "", height, width
+  EXPECT_EQ(bridge::deserializeCloud(fields.data(), fields.size(), read), "header cut short");
+  std::vector<uint8_t> longer = serialize(msg);
+  longer.push_back(0);
+  EXPECT_EQ(bridge::deserializeCloud(longer.data(), longer.size(), read),
+            "1 bytes after the cloud");
+  for (size_t cut = 0; cut < bytes.size(); cut += 7) {
+    const std::vector<uint8_t> whole = serialize(msg);
+    EXPECT_NE(bridge::deserializeCloud(whole.data(), cut, read), "") << cut;
+  }
+}
+
+}  // namespace
+}  // namespace tabletop_shapes
