@@ -15,7 +15,9 @@
 // are first met, so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace tabletop_shapes {
 namespace {
@@ -110,6 +112,26 @@ void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& ou
   applyImpl(in, out);
 }
 
+size_t Preprocessor::bufferBytes() const {
+  return slots_.capacity() * sizeof(VoxelSlot) + sums_.capacity() * sizeof(VoxelSum) +
+         flying_.capacity();
+}
+
+void Preprocessor::releaseOversizedBuffers(size_t input_points) {
+  // 8x: a normal frame's own table is 2-4x its voxels; below 1 MB nothing is worth giving back.
+  constexpr size_t kSlack = 8, kKeepBytes = 1 << 20;
+  const size_t voxels = std::max<size_t>(sums_.size(), 1024);
+  if (slots_.capacity() * sizeof(VoxelSlot) > kKeepBytes && slots_.capacity() > kSlack * voxels) {
+    std::vector<VoxelSlot>().swap(slots_);  // the next frame starts small and grows
+  }
+  if (sums_.capacity() * sizeof(VoxelSum) > kKeepBytes && sums_.capacity() > kSlack * voxels) {
+    sums_.shrink_to_fit();
+  }
+  if (flying_.capacity() > kKeepBytes && flying_.capacity() > kSlack * input_points) {
+    std::vector<uint8_t>().swap(flying_);
+  }
+}
+
 template <typename PointT>
 void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   out.header = in.header;
@@ -137,6 +159,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
       if (keep(p, i)) out.points.emplace_back(p.x, p.y, p.z);
     }
     out.width = static_cast<uint32_t>(out.points.size());
+    releaseOversizedBuffers(in.points.size());
     return;
   }
 
@@ -198,6 +221,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
                             static_cast<float>(sum.z * inv_count));
   }
   out.width = static_cast<uint32_t>(out.points.size());
+  releaseOversizedBuffers(in.points.size());
 }
 
 }  // namespace tabletop_shapes

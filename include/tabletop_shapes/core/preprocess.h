@@ -19,11 +19,16 @@ class Preprocessor {
   void apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out);
   void apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out);
 
+  // Bytes held between frames. A frame far larger than the current one (a burst of millions
+  // of points) does not leave its buffers behind: they shrink on the next normal frame.
+  size_t bufferBytes() const;
+
  private:
   template <typename PointT>
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out);
   template <typename PointT>
   void markFlyingPixels(const pcl::PointCloud<PointT>& in);
+  void releaseOversizedBuffers(size_t input_points);
 
   PreprocessParams params_;
   // Open-addressing hash from voxel key to the voxel's running sum; reused between frames.
