@@ -47,6 +47,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
           monitor_->frameSkipped(
               invalid, {bridge::Problem::Level::Error, "skipping input cloud: " + invalid, {}});
         });
+    monitor_->expectInput<sensor_msgs::PointCloud2>(subscriber_);
   }
 
   void onCloud(const boost::shared_ptr<const bridge::InputCloud>& input) {
