@@ -60,8 +60,9 @@ benchmark-accuracy: build
 
 # The whole chain on a bundled rendered recording of the paper's four objects; prints the
 # objects found beside the true values. RVIZ=1 opens rviz; DEVICE=... uses a live camera.
-demo: build
-	@scripts/demo $(if $(RVIZ),--rviz) $(if $(DEVICE),--device $(DEVICE))
+# One progress line per phase (packages, build, run); the details go to build/demo/*.log.
+demo:
+	@BUILD_DIR=$(BUILD_DIR) scripts/demo --setup $(if $(RVIZ),--rviz) $(if $(DEVICE),--device $(DEVICE))
 
 format:
 	clang-format -i $$(git ls-files '*.h' '*.cpp')

@@ -131,4 +131,24 @@ bool setParameter(PipelineParams& params, const std::string& stage, const std::s
   return found && error.empty();
 }
 
+bool validateParams(const PipelineParams& params, std::string& error) {
+  std::ostringstream why;
+  auto ordered = [&](const char* low_name, double low, const char* high_name, double high,
+                     bool equal_allowed) {
+    if (low < high || (equal_allowed && low == high)) return;
+    why << (why.tellp() > 0 ? "; " : "") << low_name << " = " << low << " must be "
+        << (equal_allowed ? "at most " : "below ") << high_name << " = " << high;
+  };
+  ordered("predictor.section_low", params.shapes.predictor.section_low, "predictor.section_high",
+          params.shapes.predictor.section_high, false);
+  ordered("cylinder.min_radius", params.shapes.cylinder.min_radius, "cylinder.max_radius",
+          params.shapes.cylinder.max_radius, false);
+  ordered("clustering.min_size", params.clustering.min_size, "clustering.max_size",
+          params.clustering.max_size, true);
+  ordered("table.min_height", params.table.min_height, "table.max_height", params.table.max_height,
+          false);
+  error = why.str();
+  return error.empty();
+}
+
 }  // namespace tabletop_shapes

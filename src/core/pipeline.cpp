@@ -1,6 +1,7 @@
 #include "tabletop_shapes/core/pipeline.h"
 
 #include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/core/up_direction.h"
 
 #include <chrono>
 
@@ -47,6 +48,9 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
   } else {
     result.up = table_params.up;
     result.table = TableSegmenter(table_params).segment(filtered_);
+    if (params_.check_up && !params_.auto_up) {
+      result.up_warning = checkUpAgainstScene(filtered_, table_params, result.table).warning;
+    }
   }
   result.times.table_ms = msSince(stage);
 

@@ -54,6 +54,8 @@ class ClusteringNodelet : public nodelet::Nodelet {
     const int queue_size = private_node.param("queue_size", 5);
     table_subscriber_.subscribe(node, "table", queue_size);
     cloud_subscriber_.subscribe(node, "objects_cloud", queue_size);
+    monitor_->expectInput<Table>(table_subscriber_.getSubscriber());
+    monitor_->expectInput<Cloud>(cloud_subscriber_.getSubscriber());
     synchronizer_ = std::make_unique<message_filters::TimeSynchronizer<Table, Cloud>>(
         table_subscriber_, cloud_subscriber_, 2 * queue_size);
     synchronizer_->registerCallback(boost::bind(&ClusteringNodelet::onFrame, this,

@@ -60,6 +60,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
           skip(header, invalid);
         },
         max_points_);
+    monitor_->expectInput<sensor_msgs::PointCloud2>(subscriber_);
   }
 
   // A frame without output: reported, and answered on `objects` so that a consumer waiting

@@ -71,6 +71,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     const int queue_size = private_node.param("queue_size", 5);
     table_subscriber_.subscribe(node, "table", queue_size);
     clusters_subscriber_.subscribe(node, "clusters", queue_size);
+    monitor_->expectInput<Table>(table_subscriber_.getSubscriber());
+    monitor_->expectInput<LabeledCloud>(clusters_subscriber_.getSubscriber());
     synchronizer_ = std::make_unique<message_filters::TimeSynchronizer<Table, LabeledCloud>>(
         table_subscriber_, clusters_subscriber_, 2 * queue_size);
     synchronizer_->registerCallback(boost::bind(&ShapeEstimationNodelet::onFrame, this,

@@ -3,6 +3,7 @@
 #include <boost/weak_ptr.hpp>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <malloc.h>
+#include <ros/master.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -17,6 +18,8 @@ namespace {
 // A cloud stays in the registry until 64 newer ones were published: far longer than a
 // subscriber queue holds it.
 constexpr size_t kRememberedClouds = 64;
+// A standing warning is logged again this often while it stands [s].
+constexpr double kWarningLogPeriod = 10.0;
 
 struct PublishedCloud {
   const void* address;
@@ -61,6 +64,34 @@ double releaseMemoryAfterBurst(double& usual_mb) {
   }
   usual_mb = usual_mb > 0.0 ? usual_mb + 0.05 * (rss - usual_mb) : rss;  // follows slowly
   return rss;
+// Who publishes `topic` according to the master, and whether the type fits `type`.
+std::string describePublishers(const std::string& topic, const std::string& type) {
+  XmlRpc::XmlRpcValue args, result, state;
+  args[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", args, result, state, false)) {
+    return topic + ": the master does not answer";
+  }
+  std::string publishers;
+  XmlRpc::XmlRpcValue& published = state[0];
+  for (int i = 0; i < published.size(); ++i) {
+    if (static_cast<std::string>(published[i][0]) != topic) continue;
+    for (int j = 0; j < published[i][1].size(); ++j) {
+      publishers += (publishers.empty() ? "" : ", ") + static_cast<std::string>(published[i][1][j]);
+    }
+  }
+  if (publishers.empty()) {
+    return topic + " (" + type + ") has no publisher: a wrong topic name or remapping? " +
+           "(rostopic list shows what is published)";
+  }
+  ros::master::V_TopicInfo topics;
+  ros::master::getTopics(topics);
+  for (const ros::master::TopicInfo& info : topics) {
+    if (info.name == topic && info.datatype != type && info.datatype != "*") {
+      return topic + " is published as " + info.datatype + " by " + publishers +
+             ", but this stage reads " + type;
+    }
+  }
+  return topic + " (" + type + ") is published by " + publishers + ", but nothing arrived";
 }
 
 }  // namespace
@@ -87,6 +118,7 @@ StageMonitor::StageMonitor(ros::NodeHandle& node, const std::string& name) : nam
 void StageMonitor::countInput(const void* cloud) {
   const bool shared = wasPublishedInProcess(cloud);
   std::lock_guard<std::mutex> lock(mutex_);
+  input_seen_ = true;
   ++(shared ? inputs_shared_ : inputs_copied_);
 }
 
@@ -110,6 +142,7 @@ void StageMonitor::frameDone(double milliseconds, size_t points_in, size_t point
 void StageMonitor::frameSkipped(const std::string& reason, const Problem& problem) {
   log(problem);
   std::lock_guard<std::mutex> lock(mutex_);
+  input_seen_ = true;
   ++skipped_;
   ++window_skipped_;
   last_skip_reason_ = reason;
@@ -121,6 +154,56 @@ void StageMonitor::frameWithoutResult(const std::string& reason, const Problem& 
   ++without_result_;
   ++window_without_result_;
   last_no_result_reason_ = reason;
+}
+
+void StageMonitor::expectInput(const std::string& resolved_topic, const std::string& type) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  expected_inputs_.emplace_back(resolved_topic, type);
+}
+
+void StageMonitor::setWarning(const std::string& key, const std::string& text) {
+  const auto now = std::chrono::steady_clock::now();
+  bool log_it = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (text.empty()) {
+      warnings_.erase(key);
+      return;
+    }
+    auto [entry, added] = warnings_.try_emplace(key);
+    // Logged when new or changed, then every kWarningLogPeriod while it stands; each key on
+    // its own, so that standing warnings and per-frame problems do not unthrottle each other.
+    log_it = added || entry->second.text != text ||
+             std::chrono::duration<double>(now - entry->second.logged).count() >= kWarningLogPeriod;
+    entry->second.text = text;
+    if (log_it) entry->second.logged = now;
+  }
+  if (log_it) ROS_WARN_NAMED(name_, "%s", text.c_str());
+}
+
+std::string StageMonitor::silentInputWarning() {
+  std::vector<std::pair<std::string, std::string>> inputs;
+  const auto now = std::chrono::steady_clock::now();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const double silent = std::chrono::duration<double>(now - start_).count();
+    if (input_seen_ || expected_inputs_.empty() || silent < kSilentInputSeconds) return "";
+    if (!silent_text_.empty() &&
+        std::chrono::duration<double>(now - silent_checked_).count() < 5.0) {
+      return silent_text_;
+    }
+    inputs = expected_inputs_;
+  }
+  // The master is asked outside the lock: frames may arrive meanwhile.
+  std::ostringstream text;
+  text << "no input since start (" << static_cast<int>(kSilentInputSeconds) << "+ s): ";
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    text << (i ? "; " : "") << describePublishers(inputs[i].first, inputs[i].second);
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  silent_text_ = text.str();
+  silent_checked_ = now;
+  return silent_text_;
 }
 
 // Under the nodelet's logger name, as NODELET_WARN / NODELET_ERROR log.
@@ -151,6 +234,7 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
   diagnostic_msgs::DiagnosticStatus status;
   status.name = name_ + ": processing";
   status.hardware_id = "tabletop_shapes";
+  setWarning("input", silentInputWarning());
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (window_skipped_ > 0) {
@@ -182,6 +266,18 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
                      keyValue("last no-result reason", last_no_result_reason_),
                      keyValue("frames dropped at input queue", dropped_),
                      keyValue("process RSS [MB]", releaseMemoryAfterBurst(usual_rss_mb_))};
+    // Standing warnings come first in the message: they say why the results may be wrong.
+    std::string warnings;
+    for (const auto& [key, warning] : warnings_) {
+      warnings += (warnings.empty() ? "" : "; ") + warning.text;
+      status.values.push_back(keyValue("warning: " + key, warning.text));
+    }
+    if (!warnings.empty()) {
+      status.message =
+          warnings +
+          (status.level == diagnostic_msgs::DiagnosticStatus::OK ? "" : "; " + status.message);
+      status.level = std::max<int8_t>(status.level, diagnostic_msgs::DiagnosticStatus::WARN);
+    }
     window_frames_ = window_skipped_ = window_without_result_ = 0;
     window_sum_ms_ = window_max_ms_ = 0.0;
   }

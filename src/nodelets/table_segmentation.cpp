@@ -9,14 +9,19 @@
 //   objects (tabletop_shapes/Objects) for a frame skipped here (no up transform), with the reason
 // The objects cloud's header.seq numbers the frames published, so that Clustering counts the
 // frames it drops.
-// Parameters: cfg/TableSegmentation.cfg (dynamic_reconfigure), and "up":
+// Parameters: cfg/TableSegmentation.cfg (dynamic_reconfigure), and "up" (at most one of):
 //   ~up_frame (string, ""): a frame whose +z is up (e.g. base_link), looked up with tf2 at the
 //     cloud's stamp; a missing transform skips the frame with a throttled warning
-//   ~up (double[3], [0, -1, 0]): up in the cloud frame when ~up_frame is empty
-//   ~auto_up (bool, false): estimate up from the scene when ~up_frame is empty
+//   ~up (string "auto", "X,Y,Z" or "[x, y, z]", or a list of 3 numbers; default auto): up in
+//     the cloud frame, or auto: estimated from the scene in every frame
+//   ~auto_up (bool, false): the older spelling of up: auto
+//   Neither given: auto. A malformed or contradictory value fails the nodelet's load. A given up
+//   (or up_frame) is compared with the scene's up once a second: off by more than
+//   up_tolerance_deg, a WARN on /diagnostics and in the log names the angle.
 //   ~tf_timeout (double, 0.1 s): how long to wait for the transform
 //   ~queue_size (int, 1)
 #include "tabletop_shapes/core/table_segmentation.h"
+#include "tabletop_shapes/core/up_direction.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
@@ -32,6 +37,8 @@
 
 #include <memory>
 #include <mutex>
+#include <sstream>
+#include <stdexcept>
 
 namespace tabletop_shapes {
 
@@ -43,15 +50,18 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
 
     up_frame_ = private_node.param<std::string>("up_frame", "");
-    auto_up_ = private_node.param("auto_up", false);
     tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
-    std::vector<double> up{0.0, -1.0, 0.0};
-    private_node.param("up", up, up);
-    if (up.size() != 3 || Eigen::Vector3d(up[0], up[1], up[2]).norm() < 1e-6) {
-      NODELET_ERROR("~up must be 3 numbers, not all zero; using [0, -1, 0]");
-      up = {0.0, -1.0, 0.0};
+    try {
+      up_ = readUpSetting(private_node);
+    } catch (const std::invalid_argument& error) {
+      // Thrown on: the load fails and the loader exits, instead of running with a wrong up.
+      NODELET_FATAL("%s", error.what());
+      throw;
     }
-    fixed_up_ = Eigen::Vector3f(up[0], up[1], up[2]).normalized();
+    const std::string up_source = !up_frame_.empty() ? "+z of frame " + up_frame_
+                                  : up_.automatic    ? "estimated from the scene in every frame"
+                                                     : formatUp(up_.vector) + " in the cloud frame";
+    NODELET_INFO("up: %s", up_source.c_str());
     if (!up_frame_.empty()) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
@@ -78,13 +88,65 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     const int queue_size = private_node.param("queue_size", 1);
     subscriber_ =
         node.subscribe("preprocessed", queue_size, &TableSegmentationNodelet::onCloud, this);
+    monitor_->expectInput<Cloud>(subscriber_);
   }
 
-  // Up in the cloud frame; false (frame skipped) when the transform is missing.
-  bool lookUpDirection(const CloudConstPtr& cloud, TableParams& params) {
+  // ~up as text or a list of numbers, one syntax with the command's --up (core parseUp), and
+  // ~auto_up; throws std::invalid_argument naming the parameter for a malformed or
+  // contradictory value.
+  UpSetting readUpSetting(ros::NodeHandle& private_node) const {
+    std::string text;
+    XmlRpc::XmlRpcValue value;
+    if (private_node.getParam("up", value)) {
+      if (value.getType() == XmlRpc::XmlRpcValue::TypeString) {
+        text = static_cast<std::string>(value);
+      } else if (value.getType() == XmlRpc::XmlRpcValue::TypeArray) {
+        std::ostringstream list;
+        list << "[";
+        for (int i = 0; i < value.size(); ++i) {
+          const auto type = value[i].getType();
+          list << (i ? ", " : "");
+          if (type == XmlRpc::XmlRpcValue::TypeDouble) {
+            list << static_cast<double>(value[i]);
+          } else if (type == XmlRpc::XmlRpcValue::TypeInt) {
+            list << static_cast<int>(value[i]);
+          } else {
+            list << value[i].toXml();
+          }
+        }
+        list << "]";
+        text = list.str();
+      } else {
+        text = value.toXml();
+      }
+    }
+    UpSetting up;
+    std::string error;
+    const std::string where = private_node.resolveName("up");
+    if (!parseUp(text, up, error)) throw std::invalid_argument(where + ": " + error);
+    if (private_node.param("auto_up", false)) {
+      if (!up.automatic) {
+        throw std::invalid_argument(where + " is " + text + " but " +
+                                    private_node.resolveName("auto_up") + " is true: give one");
+      }
+    }
+    if (!up_frame_.empty() && !up.automatic) {
+      throw std::invalid_argument(where + " is " + text + " and " +
+                                  private_node.resolveName("up_frame") + " is " + up_frame_ +
+                                  ": give one of them");
+    }
+    return up;
+  }
+
+  // Up in the cloud frame; false (frame skipped) when the transform is missing. An up that
+  // cannot be estimated leaves `no_up` saying why (the frame gets an answer without a table).
+  bool lookUpDirection(const CloudConstPtr& cloud, TableParams& params, std::string& no_up) {
     if (up_frame_.empty()) {
-      params.up = fixed_up_;
-      if (auto_up_ && !estimateUp(cloud, params, params.up)) params.up = fixed_up_;
+      if (!up_.automatic) {
+        params.up = up_.vector;
+      } else if (!estimateUp(cloud, params, params.up)) {
+        no_up = "no large plane with the camera above it to take 'up' from";
+      }
       return true;
     }
     const std_msgs::Header header = pcl_conversions::fromPCL(cloud->header);
@@ -116,8 +178,15 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     }
     // The core takes std::shared_ptr: share the received cloud, no copy.
     const CloudConstPtr input = pcl::pcl_ptr(cloud);
-    if (!lookUpDirection(input, params)) return;
-    const TableResult result = TableSegmenter(params).segment(input);
+    std::string no_up;
+    if (!lookUpDirection(input, params, no_up)) return;
+    TableResult result;
+    if (no_up.empty()) {
+      result = TableSegmenter(params).segment(input);
+      checkUp(input, params, result);
+    } else {
+      result.reason = no_up;
+    }
     if (!result.found) {
       monitor_->frameWithoutResult(
           "no table: " + result.reason,
@@ -140,6 +209,17 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     monitor_->frameDone(stopwatch.milliseconds(), cloud->size(), objects->size());
   }
 
+  // A given up (parameter or tf) against the scene's, at most once a second: it costs a plane
+  // search. An estimated up is the scene's by construction.
+  void checkUp(const CloudConstPtr& cloud, const TableParams& params, const TableResult& table) {
+    if (up_frame_.empty() && up_.automatic) return;
+    const ros::WallTime now = ros::WallTime::now();
+    if (now < next_up_check_) return;
+    next_up_check_ = now + ros::WallDuration(1.0);
+    const UpCheck check = checkUpAgainstScene(cloud, params, table);
+    monitor_->setWarning("up", check.warning);
+  }
+
   static void publishCloud(ros::Publisher& publisher, const boost::shared_ptr<Cloud>& cloud) {
     boost::shared_ptr<const Cloud> shared = cloud;
     bridge::markPublished(shared);
@@ -148,9 +228,9 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
 
   std::unique_ptr<bridge::StageMonitor> monitor_;
   std::string up_frame_;
-  bool auto_up_ = false;
+  UpSetting up_;  // used when up_frame_ is empty
+  ros::WallTime next_up_check_;
   ros::Duration tf_timeout_;
-  Eigen::Vector3f fixed_up_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   boost::recursive_mutex reconfigure_mutex_;

@@ -1,10 +1,14 @@
 // estimate_shapes: the whole pipeline on one PCD file, the result as one JSON document.
-//   estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] [--max-points N] CLOUD.pcd
+//   estimate_shapes [--up X,Y,Z | --up [x,y,z] | --up auto] [--config PARAMS.yaml]
+//                   [--max-points N] CLOUD.pcd
+// Without --up, up is estimated from the scene (auto); a given up that disagrees with the
+// scene's is reported under "warnings" (and on stderr).
 // Exit 0 when the cloud was processed (also without a table), 2 for bad usage, an unreadable
 // or inconsistent file (named in one line) or a cloud without x y z, 1 for an unexpected
 // internal error.
 #include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
+#include "tabletop_shapes/core/up_direction.h"
 
 #include "tabletop_shapes/core/pcd_reader.h"
 
@@ -24,6 +28,7 @@ namespace {
 const char* kUsage =
     "usage: estimate_shapes [--up X,Y,Z | --up auto] [--config PARAMS.yaml] [--max-points N]\n"
     "                       CLOUD.pcd   (ascii, binary or binary_compressed; N default 4000000)\n"
+    "       --up: up in the cloud frame, X,Y,Z or [x,y,z]; auto (the default) estimates it\n"
     "       estimate_shapes --parameters   (every parameter, its default and range)";
 
 struct UsageError : std::runtime_error {
@@ -80,17 +85,6 @@ class Json {
   std::ostringstream out_;
 };
 
-Eigen::Vector3f parseVector(const std::string& text) {
-  std::istringstream in(text);
-  Eigen::Vector3f v;
-  char comma1 = 0, comma2 = 0;
-  if (!(in >> v.x() >> comma1 >> v.y() >> comma2 >> v.z()) || comma1 != ',' || comma2 != ',' ||
-      !in.eof() || !v.allFinite() || v.norm() < 1e-6f) {
-    throw UsageError("--up wants X,Y,Z (a non-zero vector) or auto, got '" + text + "'");
-  }
-  return v.normalized();
-}
-
 void loadConfig(const std::string& path, PipelineParams& params) {
   YAML::Node root;
   try {
@@ -119,6 +113,8 @@ void loadConfig(const std::string& path, PipelineParams& params) {
       }
     }
   }
+  std::string error;
+  if (!validateParams(params, error)) throw UsageError("config " + path + ": " + error);
 }
 
 // Any PCD with x y z (float32 or float64); other fields (rgb, label, normals) are ignored.
@@ -138,6 +134,9 @@ std::string toJson(const SceneResult& scene) {
     json.key("reason").string(scene.table.reason).raw(",\n ");
   }
   json.key("up").array(scene.up, 3).raw(",\n ");
+  json.key("warnings").raw("[");
+  if (!scene.up_warning.empty()) json.string(scene.up_warning);
+  json.raw("],\n ");
   json.key("table");
   if (scene.table.found) {
     json.raw("{").key("coefficients").array(scene.table.plane.coefficients(), 4).raw(", ");
@@ -195,6 +194,8 @@ void printParameterTable() {
 int run(int argc, char** argv) {
   PipelineParams params;
   PcdReadOptions read_options;
+  params.auto_up = true;  // a safe default: a fixed guess suits only a level camera
+  params.check_up = true;
   std::string cloud_path;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -203,9 +204,11 @@ int run(int argc, char** argv) {
       return argv[++i];
     };
     if (arg == "--up") {
-      const std::string up = value();
-      params.auto_up = up == "auto";
-      if (!params.auto_up) params.table.up = parseVector(up);
+      UpSetting up;
+      std::string error;
+      if (!parseUp(value(), up, error)) throw UsageError("--up: " + error);
+      params.auto_up = up.automatic;
+      if (!up.automatic) params.table.up = up.vector;
     } else if (arg == "--config") {
       loadConfig(value(), params);
     } else if (arg == "--max-points") {
@@ -234,7 +237,10 @@ int run(int argc, char** argv) {
 
   const pcl::PointCloud<pcl::PointXYZ> cloud = loadCloud(cloud_path, read_options);
   Pipeline pipeline(params);
-  std::cout << toJson(pipeline.process(cloud)) << std::flush;
+  const SceneResult result = pipeline.process(cloud);
+  if (!result.up_warning.empty())
+    std::cerr << "estimate_shapes: warning: " << result.up_warning << "\n";
+  std::cout << toJson(result) << std::flush;
   return 0;
 }
 

@@ -10,6 +10,7 @@
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <std_msgs/String.h>
 #include <tabletop_shapes/Objects.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -31,7 +32,8 @@ using tabletop_shapes_test::waitFor;
 const char* const kStages[] = {"preprocess", "table_segmentation", "clustering",
                                "shape_estimation"};
 
-double privateParam(const std::string& name, double fallback) {
+template <typename T = double>
+T privateParam(const std::string& name, const T& fallback) {
   return ros::NodeHandle("~").param(name, fallback);
 }
 
@@ -110,6 +112,9 @@ class PipelineTest : public ::testing::Test {
       for (const char* stage : kStages) {
         if (status.name == std::string("/tabletop_shapes/") + stage + ": processing") {
           for (const auto& kv : status.values) diagnostics_[stage][kv.key] = kv.value;
+          if (status.level == diagnostic_msgs::DiagnosticStatus::WARN) {
+            warnings_[stage].push_back(status.message);
+          }
         }
       }
     }
@@ -149,6 +154,19 @@ class PipelineTest : public ::testing::Test {
     return v == s->second.end() ? NAN : std::atof(v->second.c_str());
   }
 
+  // Whether a WARN status of `stage` on /diagnostics contained `text`.
+  bool warnedOnDiagnostics(const std::string& stage, const std::string& text) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::vector<std::string>& messages = warnings_[stage];
+    return std::any_of(messages.begin(), messages.end(), [&](const std::string& message) {
+      return message.find(text) != std::string::npos;
+    });
+  }
+  std::string lastWarning(const std::string& stage) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return warnings_[stage].empty() ? "(none)" : warnings_[stage].back();
+  }
+
   bool setMinClusterSize(int size) {
     dynamic_reconfigure::Reconfigure call;
     dynamic_reconfigure::IntParameter parameter;
@@ -165,6 +183,7 @@ class PipelineTest : public ::testing::Test {
   std::map<ros::Time, ObjectsConstPtr> truth_;
   std::vector<visualization_msgs::MarkerArrayConstPtr> markers_;
   std::map<std::string, std::map<std::string, std::string>> diagnostics_;
+  std::map<std::string, std::vector<std::string>> warnings_;  // WARN messages by stage
   ros::WallTime first_tf_warning_;
   std::string tf_warning_text_;
   std::vector<rosgraph_msgs::LogConstPtr> logs_;
@@ -355,8 +374,9 @@ TEST_F(PipelineTest, ReconfigureMinClusterSize) {
       EXPECT_TRUE(objectsAt(i)->table_found) << "the table is still there";
     }
   };
-  ASSERT_TRUE(setMinClusterSize(1000000));
-  expectSettingHolds(0, "min_size 1e6");
+  // At most max_size (200000): a larger min_size contradicts it and is refused.
+  ASSERT_TRUE(setMinClusterSize(200000));
+  expectSettingHolds(0, "min_size 200000");
   ASSERT_TRUE(setMinClusterSize(100));
   expectSettingHolds(before, "min_size 100");
 }
@@ -715,6 +735,62 @@ TEST_F(PipelineTest, DroppedFramesAreCounted) {
       << "30 Hz is faster than the chain: some frames must have been dropped";
   EXPECT_EQ(static_cast<double>(objectsReceived()), processed - dropped_later)
       << "every frame preprocess published reached objects or was counted as dropped";
+}
+
+// A given up that disagrees with the scene (the level-camera guess on a camera looking 40 deg
+// down): TableSegmentation warns on /diagnostics and in the log, naming the angle.
+TEST_F(PipelineTest, GivenUpDisagreeingWithTheSceneIsWarned) {
+  const double timeout = privateParam("timeout", 40.0);
+  const std::string given = privateParam<std::string>("given_up", "[0.000, -1.000, 0.000]");
+  const double expected_angle = privateParam("expected_angle", 40.0);
+  const std::string text = "up " + given + " is ";
+  ASSERT_TRUE(waitFor([&] { return warnedOnDiagnostics("table_segmentation", text); }, timeout))
+      << "a WARN containing \"" << text << "\"; last: " << lastWarning("table_segmentation");
+  const std::string warning = lastWarning("table_segmentation");
+  const size_t at = warning.find(text);
+  ASSERT_NE(at, std::string::npos) << warning;
+  char rest[64] = {};
+  double angle = NAN;
+  ASSERT_EQ(std::sscanf(warning.c_str() + at + text.size(), "%lf deg from the scene's %63s", &angle,
+                        rest),
+            2)
+      << warning;
+  EXPECT_NEAR(angle, expected_angle, 3.0) << warning;
+  EXPECT_TRUE(waitFor([&] { return logsContaining(text, rosgraph_msgs::Log::WARN) >= 1; }, 5.0))
+      << "a log line containing \"" << text << "\"";
+}
+
+// With up estimated (neither up nor up_frame given) the scene's up is used: no up warning.
+TEST_F(PipelineTest, EstimatedUpGivesNoUpWarning) {
+  ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 3; }, privateParam("timeout", 40.0)));
+  EXPECT_FALSE(warnedOnDiagnostics("table_segmentation", "from the scene's up"))
+      << lastWarning("table_segmentation");
+  EXPECT_EQ(logsContaining("from the scene's up", rosgraph_msgs::Log::WARN), 0);
+}
+
+// A stage without input a few seconds after start says so on /diagnostics (WARN) and in the log,
+// naming the topic it reads and what the master knows of it (here: no publisher, or one of
+// another type, which the test itself publishes when `wrong_type_topic` is set).
+TEST_F(PipelineTest, SilentInputNamesTheTopic) {
+  const std::string text = privateParam<std::string>("expected_warning", "");
+  const std::string stage = privateParam<std::string>("stage", "preprocess");
+  const std::string wrong_type_topic = privateParam<std::string>("wrong_type_topic", "");
+  ASSERT_FALSE(text.empty());
+  ros::NodeHandle node;
+  ros::Publisher wrong_type;
+  if (!wrong_type_topic.empty()) {
+    wrong_type = node.advertise<std_msgs::String>(wrong_type_topic, 1, true);
+    std_msgs::String message;
+    message.data = "not a cloud";
+    wrong_type.publish(message);
+  }
+  EXPECT_TRUE(waitFor([&] { return warnedOnDiagnostics(stage, text); }, 30.0))
+      << "a WARN containing \"" << text << "\"; last: " << lastWarning(stage);
+  EXPECT_TRUE(waitFor([&] { return logsContaining(text, rosgraph_msgs::Log::WARN) >= 1; }, 5.0))
+      << "a log line containing \"" << text << "\"";
+  // Throttled: a standing warning is repeated at most every 10 s, not with every report.
+  ros::WallDuration(4.0).sleep();
+  EXPECT_LE(logsContaining(text, rosgraph_msgs::Log::WARN), 2);
 }
 
 }  // namespace

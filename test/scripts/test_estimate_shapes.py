@@ -76,8 +76,22 @@ class BadInput(unittest.TestCase):
         self.assertUsageError(["--frobnicate", "x.pcd"], "unknown option --frobnicate")
 
     def test_bad_up(self):
-        self.assertUsageError(["--up", "0,0", "x.pcd"], "--up wants X,Y,Z")
-        self.assertUsageError(["--up", "0,0,0", "x.pcd"], "--up wants X,Y,Z")
+        for bad in ("0,0", "0,0,0", "[0, -1, 0", "0 -1 0", "up", "0,-1,0,1", "0,x,1"):
+            self.assertUsageError(["--up", bad, "x.pcd"],
+                                  "up must be auto, X,Y,Z or [x, y, z] (a non-zero vector in "
+                                  "the cloud frame), got '%s'" % bad)
+
+    def test_contradictory_config(self):
+        cfg = os.path.join(self.tmp, "contradictory.yaml")
+        with open(cfg, "w") as f:
+            f.write("predictor:\n  section_low: 0.8\n  section_high: 0.6\n"
+                    "cylinder:\n  min_radius: 0.4\n  max_radius: 0.2\n")
+        path = os.path.join(self.tmp, "one.pcd")
+        write_pcd(path, ["x", "y", "z"], [(0, 0, 1)])
+        self.assertUsageError(["--config", cfg, path],
+                              "predictor.section_low = 0.8 must be below predictor.section_high"
+                              " = 0.6; cylinder.min_radius = 0.4 must be below "
+                              "cylinder.max_radius = 0.2")
 
     def test_missing_file(self):
         self.assertUsageError([os.path.join(self.tmp, "nope.pcd")], "cannot read PCD file")
@@ -277,11 +291,38 @@ class Processed(unittest.TestCase):
         self.assertEqual(float64["status"], "ok")
         self.assertEqual(float64["table"], float32["table"])
         self.assertEqual(len(float64["objects"]), len(float32["objects"]))
+    def test_without_up_the_tilted_scene_gets_the_estimated_up(self):
+        # learn0's camera looks ~37 deg down: the old default [0, -1, 0] found a wrong table.
+        path = os.path.join(DATA, "learn0.pcd")
+        default, estimated = self.run_json(path), self.run_json("--up", "auto", path)
+        self.assertEqual(default["status"], "ok")
+        self.assertEqual(default["up"], estimated["up"])
+        self.assertEqual(default["table"], estimated["table"])
+        self.assertEqual(default["warnings"], [])
+        self.assertLess(default["up"][1], -0.5, default["up"])  # tilted: not [0, -1, 0]
+        self.assertLess(default["up"][2], -0.4, default["up"])
+
+    def test_a_wrong_up_is_warned_about_with_its_angle(self):
+        path = os.path.join(DATA, "learn0.pcd")
+        code, out, err = run("--up", "[0, -1, 0]", path)
+        self.assertEqual(code, 0, err)
+        doc = json.loads(out)
+        self.assertEqual(len(doc["warnings"]), 1, doc)
+        match = re.match(r"up \[0.000, -1.000, 0.000\] is (\d+) deg from the scene's up",
+                         doc["warnings"][0])
+        self.assertIsNotNone(match, doc["warnings"])
+        self.assertGreater(int(match.group(1)), 30)
+        self.assertLess(int(match.group(1)), 45)
+        self.assertIn("warning: " + doc["warnings"][0], err)
+        # the scene's own up (both syntaxes) gives no warning
+        up = tuple(self.run_json(path)["up"])
+        for text in ("%g,%g,%g" % up, "[%g, %g, %g]" % up):
+            self.assertEqual(self.run_json("--up", text, path)["warnings"], [], text)
 
     def test_config_changes_the_result(self):
         cfg = os.path.join(self.tmp, "huge_min_cluster.yaml")
         with open(cfg, "w") as f:
-            f.write("clustering:\n  min_size: 1000000\n")
+            f.write("clustering:\n  min_size: 1000000\n  max_size: 2000000\n")
         doc = self.run_json("--up", "auto", "--config", cfg, os.path.join(DATA, "learn0.pcd"))
         self.assertEqual(doc["status"], "ok")
         self.assertEqual(doc["objects"], [])

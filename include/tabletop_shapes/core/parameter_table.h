@@ -27,4 +27,10 @@ void forEachParameter(PipelineParams& params,
 bool setParameter(PipelineParams& params, const std::string& stage, const std::string& name,
                   double value, std::string& error);
 
+// Pairs that contradict each other (a low end above its high end: predictor.section_low /
+// section_high, cylinder.min_radius / max_radius, clustering.min_size / max_size,
+// table.min_height / max_height). Returns false with every such pair and its values named.
+// Each value alone passes setParameter; the pair is checked once all are set.
+bool validateParams(const PipelineParams& params, std::string& error);
+
 }  // namespace tabletop_shapes

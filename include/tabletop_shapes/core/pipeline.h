@@ -15,6 +15,9 @@ struct PipelineParams {
   ClusteringParams clustering;
   ShapeEstimatorParams shapes;
   bool auto_up = false;  // estimate "up" from the scene instead of table.up
+  // With a given up (auto_up false): compare it with the scene's (checkUpAgainstScene) and
+  // fill SceneResult::up_warning when they disagree. Costs one more plane search.
+  bool check_up = false;
 };
 
 struct StageTimes {
@@ -23,6 +26,7 @@ struct StageTimes {
 
 struct SceneResult {
   Eigen::Vector3f up = Eigen::Vector3f::Zero();  // the up direction used
+  std::string up_warning;  // check_up: the given up does not fit the scene (why, with angles)
   TableResult table;
   std::vector<CloudPtr> clusters;  // the object clusters, largest first
   std::vector<ShapeFit> objects;   // one per cluster, same order; unfitted: Unknown + reason

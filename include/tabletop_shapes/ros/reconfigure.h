@@ -9,6 +9,7 @@
 #include <ros/node_handle.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -63,6 +64,7 @@ bool applyConfig(const Config& config, const std::vector<std::string>& stages,
     }
     if (!why.empty()) error += (error.empty() ? "" : "; ") + why;
   }
+  if (error.empty()) validateParams(params, error);  // contradictory pairs
   return error.empty();
 }
 
@@ -70,18 +72,77 @@ bool applyConfig(const Config& config, const std::vector<std::string>& stages,
 // parameter server (e.g. by a launch file) is set there to the core's default before the
 // dynamic_reconfigure server reads it. While the core is being tuned, a stale cfg default
 // thus cannot change the results (rostest_cfg_params still reports the drift).
+//
+// Parameters may also be given as in `estimate_shapes --config` (`stage: {name: value}`, e.g.
+// ~predictor/threshold, from <rosparam file="params.yaml"/>): those of `stages` are copied to
+// the flat name that dynamic_reconfigure uses (~threshold; moved there), which must not be set as
+// well.
+// Every stage.name there is checked against the table, also those of other nodes' stages, so that
+// one file serves all nodes. Throws std::invalid_argument naming the parameter for an unknown
+// name, a value out of range, a contradictory pair or a name given both ways (the nodelet's
+// load then fails: a wrong start-up value is refused, not run with).
 inline void seedCoreDefaults(ros::NodeHandle& private_node,
                              const std::vector<std::string>& stages) {
-  PipelineParams defaults;
+  PipelineParams defaults, given;
+  std::string errors;
+  auto fail = [&](const std::string& why) { errors += (errors.empty() ? "" : "; ") + why; };
+  std::vector<std::string> all_stages;
+  forEachParameter(defaults, [&](const ParameterInfo& info, double&) {
+    if (std::find(all_stages.begin(), all_stages.end(), info.stage) == all_stages.end()) {
+      all_stages.push_back(info.stage);
+    }
+  });
+  for (const std::string& stage : all_stages) {
+    XmlRpc::XmlRpcValue stage_map;
+    if (!private_node.getParam(stage, stage_map) ||
+        stage_map.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
+      continue;
+    }
+    const bool ours = std::find(stages.begin(), stages.end(), stage) != stages.end();
+    for (auto& [name, value] : stage_map) {
+      const std::string full = private_node.resolveName(stage + "/" + name);
+      const auto type = value.getType();
+      if (type != XmlRpc::XmlRpcValue::TypeDouble && type != XmlRpc::XmlRpcValue::TypeInt) {
+        fail(full + " is not a number");
+        continue;
+      }
+      const double number = type == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(value)
+                                                                 : static_cast<double>(value);
+      std::string why;
+      if (!setParameter(given, stage, name, number, why)) {
+        fail(full + ": " + why);
+      } else if (ours && private_node.hasParam(name)) {
+        fail(full + " and " + private_node.resolveName(name) + " are both set: give one");
+      } else if (ours) {
+        // Moved, not copied: dynamic_reconfigure keeps the flat name current from now on, and
+        // a reloaded nodelet must not find both.
+        if (type == XmlRpc::XmlRpcValue::TypeInt) {
+          private_node.setParam(name, static_cast<int>(value));
+        } else {
+          private_node.setParam(name, number);
+        }
+        private_node.deleteParam(stage + "/" + name);
+      }
+    }
+  }
+  // Then the flat names of our stages: set ones are checked, missing ones get the default.
   forEachParameter(defaults, [&](const ParameterInfo& info, double& value) {
     if (std::find(stages.begin(), stages.end(), info.stage) == stages.end()) return;
-    if (private_node.hasParam(info.name)) return;
-    if (info.is_integer) {
+    double number = 0.0;
+    if (private_node.getParam(info.name, number)) {
+      std::string why;
+      if (!setParameter(given, info.stage, info.name, number, why)) {
+        fail(private_node.resolveName(info.name) + ": " + why);
+      }
+    } else if (info.is_integer) {
       private_node.setParam(info.name, static_cast<int>(value));
     } else {
       private_node.setParam(info.name, value);
     }
   });
+  std::string contradiction;
+  if (errors.empty() && !validateParams(given, contradiction)) fail(contradiction);
+  if (!errors.empty()) throw std::invalid_argument(errors);
 }
 
 }  // namespace bridge

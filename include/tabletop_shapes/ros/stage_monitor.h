@@ -7,8 +7,10 @@
 #include <ros/ros.h>
 
 #include <chrono>
+#include <map>
 #include <mutex>
 #include <string>
+#include <vector>
 
 namespace tabletop_shapes {
 namespace bridge {
@@ -62,12 +64,38 @@ class StageMonitor {
   void frameSkipped(const std::string& reason, const Problem& problem);
   // A frame processed, but with nothing found (no table), with the reason; call frameDone too.
   void frameWithoutResult(const std::string& reason, const Problem& problem);
+  // An input topic (its resolved name and ROS type): while no input at all has arrived
+  // kSilentInputSeconds after start, /diagnostics (WARN) and the log (throttled) name each such
+  // topic and its publishers as the master lists them: none (a wrong name or remapping), or of
+  // another type. Otherwise a wrong topic name gets no answer at all.
+  void expectInput(const std::string& resolved_topic, const std::string& type);
+  template <typename Message>
+  void expectInput(const ros::Subscriber& subscriber) {
+    expectInput(subscriber.getTopic(), ros::message_traits::datatype<Message>());
+  }
+  // A standing warning under `key` (e.g. "up": the given up disagrees with the scene): level
+  // WARN on /diagnostics and a throttled log line while set; an empty `text` clears it.
+  void setWarning(const std::string& key, const std::string& text);
+
+  static constexpr double kSilentInputSeconds = 5.0;
 
  private:
   void publish(const ros::SteadyTimerEvent&);
   void log(const Problem& problem);
+  // "no input for N s since start: ..." when silent long enough (asks the master), else "".
+  std::string silentInputWarning();
 
   std::string name_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::vector<std::pair<std::string, std::string>> expected_inputs_;  // topic, type
+  bool input_seen_ = false;
+  std::string silent_text_;  // the last master query's answer, refreshed every 5 s
+  std::chrono::steady_clock::time_point silent_checked_;
+  struct StandingWarning {
+    std::string text;
+    std::chrono::steady_clock::time_point logged;
+  };
+  std::map<std::string, StandingWarning> warnings_;  // setWarning, by key
   ReasonThrottle log_throttle_{5.0};
   ros::Publisher publisher_;
   ros::SteadyTimer timer_;

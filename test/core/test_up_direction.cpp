@@ -1,0 +1,124 @@
+// "Up" in one syntax everywhere, the check of a given up against the scene, and the refusal of
+// contradictory parameter pairs.
+#include "tabletop_shapes/core/parameter_table.h"
+#include "tabletop_shapes/core/up_direction.h"
+#include "tabletop_shapes/sim/scene_renderer.h"
+
+#include <pcl/common/io.h>
+
+#include <gtest/gtest.h>
+
+using namespace tabletop_shapes;
+
+TEST(ParseUp, AcceptsAutoAndBothVectorSyntaxes) {
+  for (const char* text : {"auto", "", "  auto "}) {
+    UpSetting up;
+    up.automatic = false;
+    std::string error;
+    ASSERT_TRUE(parseUp(text, up, error)) << text << ": " << error;
+    EXPECT_TRUE(up.automatic) << text;
+  }
+  for (const char* text : {"0,-0.8,-0.6", "[0, -0.8, -0.6]", " [ 0 ,-0.8,  -0.6 ] ", "0,-8,-6",
+                           "[0.0, -8e-1, -0.6]"}) {
+    UpSetting up;
+    std::string error;
+    ASSERT_TRUE(parseUp(text, up, error)) << text << ": " << error;
+    EXPECT_FALSE(up.automatic) << text;
+    EXPECT_NEAR(up.vector.x(), 0.0f, 1e-6f) << text;
+    EXPECT_NEAR(up.vector.y(), -0.8f, 1e-6f) << text;
+    EXPECT_NEAR(up.vector.z(), -0.6f, 1e-6f) << text;
+  }
+}
+
+TEST(ParseUp, RefusesMalformedTextNamingIt) {
+  for (const char* text : {"0,-1", "0,-1,0,0", "[0, -1, 0", "0, -1, 0]", "0 -1 0", "x,y,z", "0,0,0",
+                           "nan,1,0", "inf,0,0", "[]", "[,,]", "up", "1,,2", "0,-1,0x"}) {
+    UpSetting up;
+    std::string error;
+    EXPECT_FALSE(parseUp(text, up, error)) << text;
+    EXPECT_EQ(error, std::string("up must be auto, X,Y,Z or [x, y, z] (a non-zero vector in "
+                                 "the cloud frame), got '") +
+                         text + "'");
+  }
+}
+
+TEST(ParseUp, FormatRoundTrips) {
+  EXPECT_EQ(formatUp(Eigen::Vector3f(0.0f, -0.766f, -0.643f)), "[0.000, -0.766, -0.643]");
+  UpSetting up;
+  std::string error;
+  ASSERT_TRUE(parseUp(formatUp(Eigen::Vector3f(0.6f, 0.0f, -0.8f)), up, error)) << error;
+  EXPECT_NEAR(up.vector.x(), 0.6f, 1e-6f);
+  EXPECT_NEAR(up.vector.z(), -0.8f, 1e-6f);
+}
+
+TEST(ValidateParams, DefaultsAreConsistent) {
+  std::string error;
+  EXPECT_TRUE(validateParams(PipelineParams{}, error)) << error;
+  EXPECT_TRUE(error.empty());
+}
+
+TEST(ValidateParams, ContradictoryPairsAreRefusedWithTheirValues) {
+  PipelineParams params;
+  params.shapes.predictor.section_low = 0.8f;
+  params.shapes.predictor.section_high = 0.5f;
+  params.shapes.cylinder.min_radius = 0.25f;
+  params.shapes.cylinder.max_radius = 0.25f;
+  params.clustering.min_size = 300;
+  params.clustering.max_size = 200;
+  params.table.min_height = 0.2f;
+  params.table.max_height = 0.1f;
+  std::string error;
+  EXPECT_FALSE(validateParams(params, error));
+  EXPECT_EQ(error,
+            "predictor.section_low = 0.8 must be below predictor.section_high = 0.5; "
+            "cylinder.min_radius = 0.25 must be below cylinder.max_radius = 0.25; "
+            "clustering.min_size = 300 must be at most clustering.max_size = 200; "
+            "table.min_height = 0.2 must be below table.max_height = 0.1");
+  params = PipelineParams{};
+  params.clustering.min_size = params.clustering.max_size = 500;  // one size only: fine
+  EXPECT_TRUE(validateParams(params, error)) << error;
+}
+
+namespace {
+
+// The paper's objects seen from 1 m, the camera pitched 40 deg down.
+sim::RenderedScene tiltedScene() {
+  return sim::renderScene(sim::paperScene({1.0f, 40.0f, 20.0f}, sim::NoiseModel(), 7));
+}
+
+CloudPtr xyz(const sim::RenderedScene& scene) {
+  auto cloud = std::make_shared<Cloud>();
+  pcl::copyPointCloud(*scene.cloud, *cloud);
+  return cloud;
+}
+
+}  // namespace
+
+TEST(CheckUpAgainstScene, TheTrueUpPasses) {
+  const sim::RenderedScene scene = tiltedScene();
+  const CloudPtr cloud = xyz(scene);
+  TableParams params;
+  params.up = scene.up;
+  const TableResult table = TableSegmenter(params).segment(cloud);
+  ASSERT_TRUE(table.found) << table.reason;
+  const UpCheck check = checkUpAgainstScene(cloud, params, table);
+  ASSERT_TRUE(check.scene_up_found);
+  EXPECT_LT(check.up_angle_deg, 3.0f);
+  EXPECT_LT(check.table_angle_deg, 3.0f);
+  EXPECT_EQ(check.warning, "");
+}
+
+TEST(CheckUpAgainstScene, TheLevelCameraGuessOnATiltedCameraIsWarnedWithItsAngle) {
+  const sim::RenderedScene scene = tiltedScene();
+  const CloudPtr cloud = xyz(scene);
+  TableParams params;
+  params.up = Eigen::Vector3f(0.0f, -1.0f, 0.0f);  // the old default: a level camera
+  const TableResult table = TableSegmenter(params).segment(cloud);
+  const UpCheck check = checkUpAgainstScene(cloud, params, table);
+  ASSERT_TRUE(check.scene_up_found);
+  EXPECT_NEAR(check.up_angle_deg, 40.0f, 2.0f);
+  EXPECT_LT((check.scene_up - scene.up).norm(), 0.05f) << check.scene_up.transpose();
+  EXPECT_EQ(check.warning.rfind("up [0.000, -1.000, 0.000] is 40 deg from the scene's up [", 0), 0u)
+      << check.warning;
+  EXPECT_NE(check.warning.find("check up / up_frame"), std::string::npos) << check.warning;
+}
