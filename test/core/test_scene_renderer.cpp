@@ -1,5 +1,6 @@
 // Known-answer tests of the rendered-scene generator: exact geometry when noiseless, the
 // documented noise statistics, determinism, valid random layouts, and the written files.
+#include "tabletop_shapes/sim/evaluation.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
 #include <Eigen/Eigenvalues>
@@ -652,6 +653,84 @@ TEST(SceneRenderer, SensorNames) {
   ASSERT_TRUE(parseSensorName("kinect", sensor));
   EXPECT_EQ(sensor, SensorModel::KinectV1);
   EXPECT_FALSE(parseSensorName("lidar", sensor));
+}
+
+// ---- scoring everyday objects (evaluation.h): known solids, known answers ----
+
+GroundTruthObject uprightTruth(ShapeType type, float radius_bottom, float radius_top,
+                               float height) {
+  GroundTruthObject truth;  // in a frame with z up
+  truth.type = type;
+  truth.radius_bottom = radius_bottom;
+  truth.radius_top = radius_top;
+  truth.height = height;
+  return truth;
+}
+
+ShapeFit fittedSolid(ShapeType type, float radius_bottom, float radius_top, float height,
+                     const Eigen::Quaternionf& orientation = Eigen::Quaternionf::Identity()) {
+  ShapeFit fit;
+  fit.ok = true;
+  fit.type = type;
+  fit.radius = radius_bottom;
+  fit.radius_bottom = radius_bottom;
+  fit.radius_top = radius_top;
+  fit.height = height;
+  fit.orientation = orientation;
+  return fit;
+}
+
+const Eigen::Vector3f kUp = Eigen::Vector3f::UnitZ();
+const Eigen::Quaternionf kAxisAlongX(Eigen::AngleAxisf(static_cast<float>(kPi / 2),
+                                                       Eigen::Vector3f::UnitY()));
+
+// The soup can typed a cone 22 % too wide, and its box cut by the border typed a
+// cylinder 452 mm across: wrong solids, with their oversize.
+TEST(EverydayScoring, OversizeIsTheLargestExtentRatio) {
+  const GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);
+  const ShapeFit cone = fittedSolid(ShapeType::Cone, 0.0403f, 0.033f, 0.095f);
+  EXPECT_FALSE(expectedSolid(can, cone, kUp));
+  EXPECT_NEAR(oversizePercent(can, cone, kUp), 100.0 * (0.0806 / 0.066 - 1), 0.01);
+  const std::vector<Measure> extents = dimensionErrors(can, cone, kUp);
+  ASSERT_EQ(extents.size(), 3u);
+  EXPECT_EQ(extents[2].name, "extent height");
+  EXPECT_NEAR(extents[2].error_percent, 100.0 * 0.006 / 0.101, 0.01);
+
+  GroundTruthObject box;
+  box.type = ShapeType::Cube;
+  box.dimensions = {0.089f, 0.038f, 0.175f};
+  const ShapeFit round = fittedSolid(ShapeType::Cylinder, 0.226f, 0.226f, 0.175f);
+  EXPECT_NEAR(solidExtents(box, kUp).x(), 0.089f, 1e-6f);
+  // Sorted footprints (0.452, 0.452) against (0.089, 0.038): the width is 11.9 times too large.
+  EXPECT_NEAR(oversizePercent(box, round, kUp), 100.0 * (0.452 / 0.038 - 1), 0.01);
+
+  const ShapeFit smaller = fittedSolid(ShapeType::Cylinder, 0.032f, 0.032f, 0.1f);
+  EXPECT_TRUE(expectedSolid(can, smaller, kUp));
+  EXPECT_LT(oversizePercent(can, smaller, kUp), 0.0);
+}
+
+// A lying can: a lying cylinder or its bounding box is right, an upright cylinder is not.
+TEST(EverydayScoring, LyingCanIsALyingCylinderOrItsBox) {
+  GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);
+  can.form = ObjectForm::LyingCan;
+  can.orientation = kAxisAlongX;
+  EXPECT_TRUE(solidExtents(can, kUp).isApprox(Eigen::Vector3f(0.101f, 0.066f, 0.066f)));
+
+  const ShapeFit lying = fittedSolid(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f, kAxisAlongX);
+  EXPECT_TRUE(expectedSolid(can, lying, kUp));
+  EXPECT_NEAR(oversizePercent(can, lying, kUp), 0.0, 1e-4);
+  for (const Measure& m : dimensionErrors(can, lying, kUp)) EXPECT_NEAR(m.error_percent, 0, 1e-4);
+
+  ShapeFit box = fittedSolid(ShapeType::Cube, 0, 0, 0);
+  box.dimensions = {0.066f, 0.101f, 0.066f};
+  EXPECT_TRUE(expectedSolid(can, box, kUp));
+  const std::vector<Measure> box_errors = dimensionErrors(can, box, kUp);
+  ASSERT_EQ(box_errors.size(), 3u);  // length, width, height of the can's bounding box
+  for (const Measure& m : box_errors) EXPECT_NEAR(m.error_percent, 0, 1e-4) << m.name;
+
+  const ShapeFit upright = fittedSolid(ShapeType::Cylinder, 0.0505f, 0.0505f, 0.066f);
+  EXPECT_FALSE(expectedSolid(can, upright, kUp));
+  EXPECT_NEAR(oversizePercent(can, upright, kUp), 100.0 * (0.101 / 0.066 - 1), 0.01);
 }
 
 TEST(SceneRenderer, DegenerateInputDoesNotCrash) {
