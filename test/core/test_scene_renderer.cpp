@@ -552,6 +552,15 @@ TEST(SceneRenderer, RealSenseNoiseGrowsWithTheSquareOfRange) {
   }
 }
 
+// Noise switched on with every effect off: for turning on one at a time.
+NoiseModel noEffects() {
+  NoiseModel model = NoiseModel::noiseless();
+  model.enabled = true;
+  model.lateral_noise = model.flying_pixels = model.axial_noise = model.disparity_quantisation =
+      model.grazing_dropout = model.random_dropout = false;
+  return model;
+}
+
 // Stereo shadow alone, looking straight down at a box (top 0.7 m, table 0.8 m away): left of
 // the box top, fx * baseline * (1 / 0.7 - 1 / 0.8) = 3.4 px of table have no return, so 3 or 4
 // pixels a row (the edge falls anywhere within a pixel); right of it none.
@@ -560,11 +569,7 @@ TEST(SceneRenderer, RealSenseHolesOnTheShadowSideOfDepthEdges) {
   spec.objects = {teapotBox()};  // 0.10 high
   setSensor(spec, SensorModel::RealSenseD435);
   spec.placement = {0.8f, 90.0f, 0.0f};
-  NoiseModel shadow_only = NoiseModel::noiseless();
-  shadow_only.enabled = true;
-  shadow_only.lateral_noise = shadow_only.flying_pixels = shadow_only.axial_noise =
-      shadow_only.disparity_quantisation = shadow_only.grazing_dropout =
-          shadow_only.random_dropout = false;
+  NoiseModel shadow_only = noEffects();
   shadow_only.baseline = 0.05f;
   shadow_only.stereo_shadow = true;
   spec.noise = shadow_only;
@@ -604,11 +609,7 @@ TEST(SceneRenderer, RealSenseHolesOnTheShadowSideOfDepthEdges) {
 // probability 1, 2/3, 1/3 at 1, 2, 3 px from it, and none farther away.
 TEST(SceneRenderer, RealSenseEdgeBleedingSmearsTheForeground) {
   SceneSpec spec = singleObjectScene(teapotBox());
-  NoiseModel bleed_only = NoiseModel::noiseless();
-  bleed_only.enabled = true;
-  bleed_only.lateral_noise = bleed_only.flying_pixels = bleed_only.axial_noise =
-      bleed_only.disparity_quantisation = bleed_only.grazing_dropout = bleed_only.random_dropout =
-          false;
+  NoiseModel bleed_only = noEffects();
   bleed_only.edge_bleeding = true;
   bleed_only.edge_bleed_px = 3;
   spec.noise = bleed_only;
