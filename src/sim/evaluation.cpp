@@ -199,6 +199,10 @@ double oversizePercent(const GroundTruthObject& truth, const ShapeFit& fit,
 
 bool expectedSolid(const GroundTruthObject& truth, const ShapeFit& fit, const Eigen::Vector3f& up) {
   if (!fit.ok) return false;
+  if (truth.type == ShapeType::Cone) {  // and tapering the same way (a bowl opens upward)
+    return fit.type == ShapeType::Cone &&
+           (fit.radius_top > fit.radius_bottom) == (truth.radius_top > truth.radius_bottom);
+  }
   if (truth.form != ObjectForm::LyingCan) return fit.type == truth.type;
   const bool lying_cylinder = fit.type == ShapeType::Cylinder &&
                               std::abs(fit.axis().dot(up)) < std::cos(static_cast<float>(kPi / 4));

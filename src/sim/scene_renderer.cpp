@@ -1007,6 +1007,11 @@ SceneSpec everydayScene(uint32_t seed, SensorModel sensor) {
       break;
     }
   }
+  // Half of the tables stand 0-0.2 m before a wall (on real frames its clusters became large
+  // cones), when the camera is on this side of it.
+  spec.table.wall_distance = between(0.0f, 0.2f);
+  const float wall_y = spec.table.width / 2 + spec.table.wall_distance;
+  spec.table.back_wall = unit(rng) < 0.5f && cameraPose(spec).translation().y() < wall_y - 0.1f;
   return spec;
 }
 

@@ -710,6 +710,14 @@ TEST(EverydayScoring, OversizeIsTheLargestExtentRatio) {
   EXPECT_LT(oversizePercent(can, smaller, kUp), 0.0);
 }
 
+// A bowl is a cone opening upward: the upside-down taper is the wrong solid.
+TEST(EverydayScoring, BowlTaperMustOpenUpward) {
+  const GroundTruthObject bowl = uprightTruth(ShapeType::Cone, 0.04f, 0.075f, 0.065f);
+  EXPECT_TRUE(expectedSolid(bowl, fittedSolid(ShapeType::Cone, 0.045f, 0.07f, 0.065f), kUp));
+  EXPECT_FALSE(expectedSolid(bowl, fittedSolid(ShapeType::Cone, 0.07f, 0.045f, 0.065f), kUp));
+  EXPECT_FALSE(expectedSolid(bowl, fittedSolid(ShapeType::Cylinder, 0.06f, 0.06f, 0.065f), kUp));
+}
+
 // A lying can: a lying cylinder or its bounding box is right, an upright cylinder is not.
 TEST(EverydayScoring, LyingCanIsALyingCylinderOrItsBox) {
   GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);

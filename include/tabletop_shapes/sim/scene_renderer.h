@@ -304,7 +304,8 @@ void setSensor(SceneSpec& spec, SensorModel sensor);
 // (about half of it out of view), and 4 objects of 4 other kinds (a shuffled list: over many
 // scenes each kind appears about equally often), centred inside the image. Every object is
 // centred 0.4-1.2 m from the camera, and at least 0.1 m beyond the sensor's near limit (0.55 m
-// for the Kinect). An object without a free place is left out. Table 1.6 x 1.0 m.
+// for the Kinect). An object without a free place is left out. Table 1.6 x 1.0 m; half of the
+// scenes have a wall 0-0.2 m behind it (where the camera is not beyond the wall).
 SceneSpec everydayScene(uint32_t seed, SensorModel sensor);
 
 // Ground truth + scene parameters as a JSON object (hand-written, stable key order).
