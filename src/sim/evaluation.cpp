@@ -133,6 +133,99 @@ std::vector<Measure> compareToTruth(const GroundTruthObject& truth, const ShapeF
   return measures;
 }
 
+namespace {
+
+// Footprint sorted descending, then height.
+Eigen::Vector3f footprintAndHeight(float a, float b, float height) {
+  return {std::max(a, b), std::min(a, b), height};
+}
+
+// A box with edges `dimensions` along the axes of `orientation`: the edge nearest up is its height.
+Eigen::Vector3f boxExtents(const Eigen::Quaternionf& orientation, const Eigen::Vector3f& dimensions,
+                           const Eigen::Vector3f& up) {
+  int vertical = 0;
+  (orientation.toRotationMatrix().transpose() * up).cwiseAbs().maxCoeff(&vertical);
+  return footprintAndHeight(dimensions[(vertical + 1) % 3], dimensions[(vertical + 2) % 3],
+                            dimensions[vertical]);
+}
+
+// A round solid of diameter `diameter` and length `length` along an axis `cos_up` from up.
+Eigen::Vector3f roundExtents(float diameter, float length, float cos_up) {
+  if (std::abs(cos_up) >= std::cos(static_cast<float>(kPi / 4))) {
+    return footprintAndHeight(diameter, diameter, length);
+  }
+  return footprintAndHeight(length, diameter, diameter);
+}
+
+// The true object as a box: a round one's bounding box along its own axes.
+GroundTruthObject boundingBoxTruth(const GroundTruthObject& truth) {
+  GroundTruthObject box = truth;
+  box.type = ShapeType::Cube;
+  const float diameter = 2 * std::max(truth.radius_bottom, truth.radius_top);
+  box.dimensions = {diameter, diameter, truth.height};
+  box.sorted_dimensions = sortedDescending(box.dimensions);
+  return box;
+}
+
+}  // namespace
+
+Eigen::Vector3f solidExtents(const GroundTruthObject& truth, const Eigen::Vector3f& up) {
+  if (truth.type == ShapeType::Cube) return boxExtents(truth.orientation, truth.dimensions, up);
+  return roundExtents(2 * std::max(truth.radius_bottom, truth.radius_top), truth.height,
+                      truth.axis().dot(up));
+}
+
+Eigen::Vector3f solidExtents(const ShapeFit& fit, const Eigen::Vector3f& up) {
+  switch (fit.type) {
+    case ShapeType::Cube:
+      return boxExtents(fit.orientation, fit.dimensions, up);
+    case ShapeType::Cylinder:
+      return roundExtents(2 * fit.radius, fit.height, fit.axis().dot(up));
+    case ShapeType::Cone:
+      return roundExtents(2 * std::max(fit.radius_bottom, fit.radius_top), fit.height,
+                          fit.axis().dot(up));
+    case ShapeType::Unknown:
+      break;
+  }
+  return Eigen::Vector3f::Zero();
+}
+
+double oversizePercent(const GroundTruthObject& truth, const ShapeFit& fit,
+                       const Eigen::Vector3f& up) {
+  const Eigen::Vector3f ratio =
+      solidExtents(fit, up).cwiseQuotient(solidExtents(truth, up).cwiseMax(1e-6f));
+  return 100.0 * (ratio.maxCoeff() - 1.0);
+}
+
+bool expectedSolid(const GroundTruthObject& truth, const ShapeFit& fit, const Eigen::Vector3f& up) {
+  if (!fit.ok) return false;
+  if (truth.type == ShapeType::Cone) {  // and tapering the same way (a bowl opens upward)
+    return fit.type == ShapeType::Cone &&
+           (fit.radius_top > fit.radius_bottom) == (truth.radius_top > truth.radius_bottom);
+  }
+  if (truth.form != ObjectForm::LyingCan) return fit.type == truth.type;
+  const bool lying_cylinder = fit.type == ShapeType::Cylinder &&
+                              std::abs(fit.axis().dot(up)) < std::cos(static_cast<float>(kPi / 4));
+  return lying_cylinder || fit.type == ShapeType::Cube;
+}
+
+std::vector<Measure> dimensionErrors(const GroundTruthObject& truth, const ShapeFit& fit,
+                                     const Eigen::Vector3f& up) {
+  std::vector<Measure> measures;
+  if (!fit.ok) return measures;
+  if (expectedSolid(truth, fit, up)) {
+    const bool as_box = fit.type == ShapeType::Cube && truth.type != ShapeType::Cube;
+    for (const Measure& m : compareToTruth(as_box ? boundingBoxTruth(truth) : truth, fit)) {
+      if (m.name != "volume") measures.push_back(m);
+    }
+    return measures;
+  }
+  const Eigen::Vector3f e = solidExtents(fit, up), t = solidExtents(truth, up);
+  const char* names[] = {"extent length", "extent width", "extent height"};
+  for (int i = 0; i < 3; ++i) measures.push_back(measure(names[i], e[i], t[i]));
+  return measures;
+}
+
 LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
                                  const SceneResult& result, int min_object_points,
                                  float table_distance, float cluster_distance) {

@@ -25,6 +25,13 @@ OptionRead readSceneOption(int argc, char** argv, int& i, SceneChoice& choice, s
   };
   if (arg == "--paper") {
     choice.paper = true;
+  } else if (arg == "--everyday") {
+    choice.everyday = true;
+  } else if (arg == "--sensor") {
+    if (i + 1 >= argc || !parseSensorName(argv[++i], choice.sensor)) {
+      error = arg + " needs kinect or realsense";
+      return OptionRead::Invalid;
+    }
   } else if (arg == "--noiseless") {
     choice.noiseless = true;
   } else if (arg == "--seed") {
@@ -49,12 +56,17 @@ OptionRead readSceneOption(int argc, char** argv, int& i, SceneChoice& choice, s
 }
 
 std::string sceneChoiceError(const SceneChoice& choice) {
-  return choice.paper && choice.objects > 0 ? "--paper and --objects exclude each other" : "";
+  if (choice.paper + choice.everyday + (choice.objects > 0) > 1) {
+    return "--paper, --everyday and --objects exclude each other";
+  }
+  return "";
 }
 
 SceneSpec sceneSpecFrom(const SceneChoice& choice) {
   SceneSpec spec;
-  if (choice.paper) {
+  if (choice.everyday) {
+    spec = everydayScene(choice.seed, choice.sensor);
+  } else if (choice.paper) {
     spec = paperScene(CameraPlacement{1.0f, 40.0f, 90.0f}, NoiseModel{}, choice.seed);
   } else {
     std::mt19937 rng(choice.seed);
@@ -62,6 +74,7 @@ SceneSpec sceneSpecFrom(const SceneChoice& choice) {
     if (choice.objects > 0) options.min_objects = options.max_objects = choice.objects;
     spec = randomScene(rng, options);
   }
+  if (!choice.everyday) setSensor(spec, choice.sensor);
   if (choice.noiseless) spec.noise = NoiseModel::noiseless();
   if (!std::isnan(choice.distance)) spec.placement.distance = choice.distance;
   if (!std::isnan(choice.tilt_deg)) spec.placement.tilt_deg = choice.tilt_deg;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <numeric>
 #include <sstream>
 
 namespace tabletop_shapes {
@@ -35,6 +36,10 @@ struct Solid {
   Vec3 origin = Vec3::Zero();
   Vec3 half_size = Vec3::Zero();                         // box
   double radius_bottom = 0, radius_top = 0, height = 0;  // round
+  // Round: which caps are there (a bowl's or a mug's top is open); the top cap may be a ring
+  // (a rim) with this inner radius.
+  bool bottom_cap = true, top_cap = true;
+  double top_cap_inner_radius = 0;
   int label = kNoReturn;
   Rgb colour{0, 0, 0};
 
@@ -102,12 +107,15 @@ struct Solid {
       normal = Vec3(p.x(), p.y(), -slope * (radius_bottom + slope * p.z())).normalized();
     }
     if (std::abs(d.z()) > 1e-15) {
-      for (const auto& [z, r, nz] : {std::array<double, 3>{height, radius_top, 1.0},
-                                     std::array<double, 3>{0.0, radius_bottom, -1.0}}) {
+      const double no_cap = -1.0;  // radius of a missing cap: skipped
+      for (const auto& [z, r, r_inner, nz] :
+           {std::array<double, 4>{height, top_cap ? radius_top : no_cap, top_cap_inner_radius, 1.0},
+            std::array<double, 4>{0.0, bottom_cap ? radius_bottom : no_cap, 0.0, -1.0}}) {
         const double t = (z - o.z()) / d.z();
-        if (!(t > kMinT) || t >= best) continue;
+        if (r < 0 || !(t > kMinT) || t >= best) continue;
         const Vec3 p = o + t * d;
-        if (p.x() * p.x() + p.y() * p.y() > r * r) continue;
+        const double r2 = p.x() * p.x() + p.y() * p.y();
+        if (r2 > r * r || r2 < r_inner * r_inner) continue;
         best = t;
         normal = Vec3(0, 0, nz);
       }
@@ -167,6 +175,100 @@ Solid makeBox(const Vec3& centre, const Vec3& size, double yaw, int label, const
   return s;
 }
 
+// Upright truncated cone in the object's frame: `bottom` is the world position of its bottom
+// centre, `rotation` world_from_local.
+Solid makeRound(const Vec3& bottom, const Mat3& rotation, double radius_bottom, double radius_top,
+                double height, int label, const Rgb& colour) {
+  Solid s;
+  s.kind = Solid::kRound;
+  s.world_from_local = rotation;
+  s.origin = bottom;
+  s.radius_bottom = radius_bottom;
+  s.radius_top = radius_top;
+  s.height = height;
+  s.label = label;
+  s.colour = colour;
+  return s;
+}
+
+// Mug handle: a C of three bars on the local +x side, from 25 % to 80 % of the height [m].
+constexpr double kHandleReach = 0.025, kHandleBar = 0.008, kHandleWidth = 0.012;
+
+// The solids that make up one object (several for the everyday forms, all with its label).
+void addObjectSolids(const ObjectSpec& object, const Vec3& bottom, int label, const Rgb& colour,
+                     std::vector<Solid>& solids) {
+  const Mat3 yaw = Eigen::AngleAxisd(object.yaw, Vec3::UnitZ()).toRotationMatrix();
+  const double rb = object.radius_bottom, h = object.height;
+  const double rt = object.type == ShapeType::Cylinder ? rb : object.radius_top;
+  auto round = [&](double z0, double r0, double r1, double height) {
+    solids.push_back(makeRound(bottom + Vec3(0, 0, z0), yaw, r0, r1, height, label, colour));
+    return &solids.back();
+  };
+  auto box = [&](const Vec3& local_centre, const Vec3& size) {
+    solids.push_back(makeBox(bottom + yaw * local_centre, size, object.yaw, label, colour));
+  };
+  switch (object.form) {
+    case ObjectForm::Plain:
+      if (object.type == ShapeType::Cube) {
+        const Vec3 size = object.box_size.cast<double>();
+        box(Vec3(0, 0, size.z() / 2), size);
+      } else if (h > 0 && rb > 0 && rt > 0) {
+        round(0, rb, rt, h);
+      }
+      return;
+    case ObjectForm::Bottle: {
+      // Body 60 %, shoulder 17 %, neck 16 %, cap 7 % of the height.
+      const double neck = std::max(0.35 * rb, 0.011);
+      round(0, rb, rb, 0.60 * h);
+      round(0.60 * h, rb, neck, 0.17 * h);
+      round(0.77 * h, neck, neck, 0.16 * h);
+      round(0.93 * h, neck + 0.0015, neck + 0.0015, 0.07 * h);
+      return;
+    }
+    case ObjectForm::FlatBottle: {
+      // Body with vertical edges rounded to a quarter of its thickness; a round cap on top.
+      const Vec3 size = object.box_size.cast<double>();
+      const double corner = 0.25 * std::min(size.x(), size.y());
+      const double cap_radius = std::min(0.014, size.y() / 2 - 0.005), cap_height = 0.02;
+      const double body = size.z() - cap_height;
+      box(Vec3(0, 0, body / 2), Vec3(size.x() - 2 * corner, size.y(), body));
+      box(Vec3(0, 0, body / 2), Vec3(size.x(), size.y() - 2 * corner, body));
+      for (const double sx : {-1.0, 1.0}) {
+        for (const double sy : {-1.0, 1.0}) {
+          const Vec3 offset(sx * (size.x() / 2 - corner), sy * (size.y() / 2 - corner), 0);
+          solids.push_back(
+              makeRound(bottom + yaw * offset, yaw, corner, corner, body, label, colour));
+        }
+      }
+      round(body, cap_radius, cap_radius, cap_height);
+      return;
+    }
+    case ObjectForm::Bowl:
+    case ObjectForm::Mug: {
+      // Open shell: outer wall with a bottom and a rim ring, inner wall with the inner floor.
+      const double wall = object.wall_thickness;
+      Solid* outer = round(0, rb, rt, h);
+      outer->top_cap_inner_radius = rt - wall;
+      round(wall, rb - wall, rt - wall, h - wall)->top_cap = false;
+      if (object.form == ObjectForm::Mug) {
+        const double r = rb, arm = r + kHandleReach / 2 - wall / 2;
+        box(Vec3(arm, 0, 0.8 * h), Vec3(kHandleReach + wall, kHandleWidth, kHandleBar));
+        box(Vec3(arm, 0, 0.25 * h), Vec3(kHandleReach + wall, kHandleWidth, kHandleBar));
+        box(Vec3(r + kHandleReach - kHandleBar / 2, 0, 0.525 * h),
+            Vec3(kHandleBar, kHandleWidth, 0.55 * h + kHandleBar));
+      }
+      return;
+    }
+    case ObjectForm::LyingCan: {
+      // Local z (the can's axis) along the object's x; bottom centre at one end.
+      const Mat3 lying = yaw * Eigen::AngleAxisd(kPi / 2, Vec3::UnitY()).toRotationMatrix();
+      solids.push_back(makeRound(bottom + Vec3(0, 0, rb) - lying * Vec3(0, 0, h / 2), lying, rb, rb,
+                                 h, label, colour));
+      return;
+    }
+  }
+}
+
 // Distinct, saturated object colours; surfaces of the room are muted.
 const Rgb kObjectPalette[] = {{220, 40, 40},  {40, 170, 60},  {40, 90, 220},  {230, 200, 30},
                               {200, 50, 200}, {30, 190, 200}, {240, 130, 20}, {120, 60, 180}};
@@ -198,22 +300,7 @@ std::vector<Solid> buildSolids(const SceneSpec& spec) {
     const ObjectSpec& object = spec.objects[i];
     const Rgb& colour = kObjectPalette[i % palette_size];
     const Vec3 bottom(object.position_on_table.x(), object.position_on_table.y(), table.height);
-    const int label = static_cast<int>(i);
-    if (object.type == ShapeType::Cube) {
-      const Vec3 size = object.box_size.cast<double>();
-      solids.push_back(makeBox(bottom + Vec3(0, 0, size.z() / 2), size, object.yaw, label, colour));
-    } else if (object.type == ShapeType::Cylinder || object.type == ShapeType::Cone) {
-      Solid s;
-      s.kind = Solid::kRound;
-      s.world_from_local = Eigen::AngleAxisd(object.yaw, Vec3::UnitZ()).toRotationMatrix();
-      s.origin = bottom;
-      s.radius_bottom = object.radius_bottom;
-      s.radius_top = object.type == ShapeType::Cylinder ? object.radius_bottom : object.radius_top;
-      s.height = object.height;
-      s.label = label;
-      s.colour = colour;
-      if (s.height > 0 && s.radius_bottom > 0 && s.radius_top > 0) solids.push_back(s);
-    }
+    addObjectSolids(object, bottom, static_cast<int>(i), colour, solids);
   }
   return solids;
 }
@@ -228,13 +315,18 @@ GroundTruthObject groundTruth(const ObjectSpec& object, const TableSpec& table,
   GroundTruthObject gt;
   gt.type = object.type;
   gt.name = object.name;
-  gt.height = object.objectHeight();
+  gt.form = object.form;
+  gt.height = object.type == ShapeType::Cube ? object.box_size.z() : object.height;
   const Eigen::Vector3f centre_world(object.position_on_table.x(), object.position_on_table.y(),
-                                     table.height + gt.height / 2);
+                                     table.height + object.objectHeight() / 2);
   gt.center = camera_from_world * centre_world;
-  gt.orientation = Eigen::Quaternionf(camera_from_world.linear() *
-                                      Eigen::AngleAxisf(object.yaw, Eigen::Vector3f::UnitZ()))
-                       .normalized();
+  Eigen::Matrix3f world_from_object =
+      Eigen::AngleAxisf(object.yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  if (object.form == ObjectForm::LyingCan) {  // axis (object z) along the yaw direction
+    world_from_object *=
+        Eigen::AngleAxisf(static_cast<float>(kPi / 2), Eigen::Vector3f::UnitY()).toRotationMatrix();
+  }
+  gt.orientation = Eigen::Quaternionf(camera_from_world.linear() * world_from_object).normalized();
   if (object.type == ShapeType::Cube) {
     gt.dimensions = object.box_size;
     gt.sorted_dimensions = sorted(object.box_size);
@@ -245,15 +337,150 @@ GroundTruthObject groundTruth(const ObjectSpec& object, const TableSpec& table,
   return gt;
 }
 
+// Active stereo's edge bleeding (file comment, 1a): each pixel within `radius` of a pixel
+// nearer by more than `min_jump` takes, with probability 1 - (k - 1) / radius at Chebyshev
+// distance k, the depth, label, incidence and colour of the nearest such pixel (the nearest
+// of them when several are equally far).
+void bleedEdges(int width, int height, int radius, double min_jump, std::vector<double>& depth,
+                std::vector<int>& labels, std::vector<double>& cos_incidence,
+                std::vector<Rgb>& colours, std::mt19937& rng) {
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  const std::vector<double> source = depth;
+  const std::vector<int> source_labels = labels;
+  const std::vector<double> source_cos = cos_incidence;
+  const std::vector<Rgb> source_colours = colours;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const size_t i = static_cast<size_t>(v) * width + u;
+      int best_k = radius + 1;
+      size_t best = i;
+      for (int dv = -radius; dv <= radius; ++dv) {
+        for (int du = -radius; du <= radius; ++du) {
+          const int nu = u + du, nv = v + dv, k = std::max(std::abs(du), std::abs(dv));
+          if (k == 0 || k > best_k || nu < 0 || nv < 0 || nu >= width || nv >= height) continue;
+          const size_t j = static_cast<size_t>(nv) * width + nu;
+          if (!std::isfinite(source[j]) || !(source[i] - source[j] > min_jump)) continue;
+          if (k < best_k || source[j] < source[best]) {
+            best_k = k;
+            best = j;
+          }
+        }
+      }
+      if (best == i || uniform(rng) >= 1.0f - static_cast<float>(best_k - 1) / radius) continue;
+      depth[i] = source[best];
+      labels[i] = source_labels[best];
+      cos_incidence[i] = source_cos[best];
+      colours[i] = source_colours[best];
+    }
+  }
+}
+
+// Active stereo's shadow (file comment, 1b): pixels the right imager, `focal_baseline` / z
+// pixels of disparity away, cannot see lose their depth.
+void removeStereoShadow(int width, int height, double focal_baseline, std::vector<double>& depth) {
+  std::vector<double> disparity(depth.size(), 0.0);
+  for (size_t i = 0; i < depth.size(); ++i) {
+    if (std::isfinite(depth[i]) && depth[i] > 0) disparity[i] = focal_baseline / depth[i];
+  }
+  for (int v = 0; v < height; ++v) {
+    const double* row = disparity.data() + static_cast<size_t>(v) * width;
+    const double row_max = *std::max_element(row, row + width);
+    for (int u = 0; u < width; ++u) {
+      if (row[u] <= 0) continue;
+      for (int u2 = u + 1; u2 < width && u2 - u <= row_max - row[u]; ++u2) {
+        if (row[u2] - row[u] >= u2 - u) {
+          depth[static_cast<size_t>(v) * width + u] = kInf;
+          break;
+        }
+      }
+    }
+  }
+}
+
+// A unit-variance Gaussian field correlated over `size` x `size` pixels: the box sum of
+// independent normals, divided by the root of the number summed (fewer at the image border).
+std::vector<float> correlatedNoiseField(int width, int height, int size, std::mt19937& rng) {
+  std::normal_distribution<float> standard_normal(0.0f, 1.0f);
+  // Integral image with a zero first row and column.
+  std::vector<double> integral(static_cast<size_t>(width + 1) * (height + 1), 0.0);
+  auto at = [&](int u, int v) -> double& {
+    return integral[static_cast<size_t>(v) * (width + 1) + u];
+  };
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      at(u + 1, v + 1) = standard_normal(rng) + at(u, v + 1) + at(u + 1, v) - at(u, v);
+    }
+  }
+  std::vector<float> field(static_cast<size_t>(width) * height);
+  const int before = (size - 1) / 2, after = size / 2;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const int u0 = std::max(u - before, 0), u1 = std::min(u + after, width - 1) + 1;
+      const int v0 = std::max(v - before, 0), v1 = std::min(v + after, height - 1) + 1;
+      const double sum = at(u1, v1) - at(u0, v1) - at(u1, v0) + at(u0, v0);
+      field[static_cast<size_t>(v) * width + u] =
+          static_cast<float>(sum / std::sqrt(static_cast<double>((u1 - u0) * (v1 - v0))));
+    }
+  }
+  return field;
+}
+
 }  // namespace
+
+// ---- sensors ----
+
+const char* sensorName(SensorModel sensor) {
+  return sensor == SensorModel::RealSenseD435 ? "realsense" : "kinect";
+}
+
+bool parseSensorName(const std::string& text, SensorModel& sensor) {
+  if (text == "kinect" || text == "kinect-v1") {
+    sensor = SensorModel::KinectV1;
+  } else if (text == "realsense" || text == "d435") {
+    sensor = SensorModel::RealSenseD435;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+NoiseModel NoiseModel::realSenseD435() {
+  NoiseModel model;
+  model.lateral_sigma_px = 0.3f;
+  model.flying_pixel_fraction = 0.1f;  // the correlation window bleeds edges instead
+  // Depth sigma z^2 * 0.08 px / (385 px * 0.05 m) = 4.16 mm * z^2, shared between per-pixel
+  // noise (3.0 mm) and speckle (2.9 mm), which add in quadrature.
+  model.axial_sigma_base = 0.0f;
+  model.axial_sigma_quadratic = 0.0030f;
+  model.axial_reference_range = 0.0f;
+  model.speckle = true;
+  model.speckle_sigma_quadratic = 0.0029f;
+  model.speckle_size_px = 5;
+  model.baseline = 0.05f;
+  model.disparity_step_px = 1.0f / 32;  // 5 bits of subpixel disparity
+  model.edge_bleeding = true;
+  model.edge_bleed_px = 3;
+  model.stereo_shadow = true;
+  model.dropout_probability = 0.01f;
+  model.min_range = 0.28f;
+  model.max_range = 4.0f;
+  return model;
+}
+
+void setSensor(SceneSpec& spec, SensorModel sensor) {
+  const bool realsense = sensor == SensorModel::RealSenseD435;
+  spec.camera = realsense ? CameraIntrinsics::realSenseD435() : CameraIntrinsics();
+  spec.noise = realsense ? NoiseModel::realSenseD435() : NoiseModel::kinectV1();
+}
 
 // ---- objects ----
 
 Eigen::Vector2f ObjectSpec::footprintHalfExtents() const {
-  if (type == ShapeType::Cube) {
+  if (type == ShapeType::Cube || form == ObjectForm::LyingCan) {
+    const float length = form == ObjectForm::LyingCan ? height : box_size.x();
+    const float width = form == ObjectForm::LyingCan ? 2 * radius_bottom : box_size.y();
     const float c = std::abs(std::cos(yaw)), s = std::abs(std::sin(yaw));
-    return {c * box_size.x() / 2 + s * box_size.y() / 2,
-            s * box_size.x() / 2 + c * box_size.y() / 2};
+    return {c * length / 2 + s * width / 2, s * length / 2 + c * width / 2};
   }
   const float r = footprintRadius();
   return {r, r};
@@ -261,6 +488,8 @@ Eigen::Vector2f ObjectSpec::footprintHalfExtents() const {
 
 float ObjectSpec::footprintRadius() const {
   if (type == ShapeType::Cube) return box_size.head<2>().norm() / 2;
+  if (form == ObjectForm::LyingCan) return Eigen::Vector2f(height / 2, radius_bottom).norm();
+  if (form == ObjectForm::Mug) return radius_bottom + static_cast<float>(kHandleReach);
   return type == ShapeType::Cone ? std::max(radius_bottom, radius_top) : radius_bottom;
 }
 
@@ -289,9 +518,72 @@ ObjectSpec teapotBox() { return boxObject("teapot box", 0.175f, 0.12f, 0.10f); }
 ObjectSpec steelMug() { return roundObject("mug", ShapeType::Cylinder, 0.0415f, 0.0415f, 0.16f); }
 ObjectSpec beaker() { return roundObject("beaker", ShapeType::Cone, 0.03f, 0.0375f, 0.18f); }
 
+const char* everydayKindName(EverydayKind kind) {
+  switch (kind) {
+    case EverydayKind::Bottle:
+      return "bottle";
+    case EverydayKind::FlatBottle:
+      return "flat bottle";
+    case EverydayKind::ShortWideCan:
+      return "short wide can";
+    case EverydayKind::Marker:
+      return "marker";
+    case EverydayKind::SoupCan:
+      return "soup can";
+    case EverydayKind::LyingCan:
+      return "lying can";
+    case EverydayKind::Bowl:
+      return "bowl";
+    case EverydayKind::Mug:
+      return "mug";
+    case EverydayKind::BorderBox:
+      return "border box";
+  }
+  return "";
+}
+
+ObjectSpec everydayObject(EverydayKind kind, int variant) {
+  const char* name = everydayKindName(kind);
+  const bool second = variant % 2 != 0;
+  auto formed = [](ObjectSpec object, ObjectForm form) {
+    object.form = form;
+    return object;
+  };
+  switch (kind) {
+    case EverydayKind::Bottle:
+      return formed(second ? roundObject(name, ShapeType::Cylinder, 0.04f, 0.04f, 0.26f)
+                           : roundObject(name, ShapeType::Cylinder, 0.0325f, 0.0325f, 0.205f),
+                    ObjectForm::Bottle);
+    case EverydayKind::FlatBottle:
+      return formed(
+          second ? boxObject(name, 0.098f, 0.065f, 0.25f) : boxObject(name, 0.085f, 0.05f, 0.175f),
+          ObjectForm::FlatBottle);
+    case EverydayKind::ShortWideCan:
+      return roundObject(name, ShapeType::Cylinder, 0.0425f, 0.0425f, 0.033f);
+    case EverydayKind::Marker:
+      return roundObject(name, ShapeType::Cylinder, 0.009f, 0.009f, 0.14f);
+    case EverydayKind::SoupCan:
+      return roundObject(name, ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);
+    case EverydayKind::LyingCan:
+      return formed(roundObject(name, ShapeType::Cylinder, 0.033f, 0.033f, 0.101f),
+                    ObjectForm::LyingCan);
+    case EverydayKind::Bowl:
+      return formed(roundObject(name, ShapeType::Cone, 0.04f, 0.075f, 0.065f), ObjectForm::Bowl);
+    case EverydayKind::Mug:
+      return formed(roundObject(name, ShapeType::Cylinder, 0.041f, 0.041f, 0.095f),
+                    ObjectForm::Mug);
+    case EverydayKind::BorderBox:
+      return boxObject(name, 0.089f, 0.038f, 0.175f);
+  }
+  return ObjectSpec();
+}
+
 // ---- camera ----
 
 Eigen::Vector3f lookAtPoint(const SceneSpec& spec) {
+  if (spec.placement.fixed_look_at) {
+    return {spec.placement.look_at.x(), spec.placement.look_at.y(), spec.table.height};
+  }
   Eigen::Vector2f mean = Eigen::Vector2f::Zero();
   for (const auto& object : spec.objects) mean += object.position_on_table;
   if (!spec.objects.empty()) mean /= static_cast<float>(spec.objects.size());
@@ -395,9 +687,19 @@ RenderedScene renderScene(const SceneSpec& spec) {
     }
   }
 
+  const double focal_baseline = cam.fx * noise.baseline;
+  if (noisy && noise.edge_bleeding && noise.edge_bleed_px > 0) {
+    bleedEdges(width, height, noise.edge_bleed_px, noise.flying_min_jump, depth, labels,
+               cos_incidence, colours, rng);
+  }
+  if (noisy && noise.stereo_shadow) removeStereoShadow(width, height, focal_baseline, depth);
+  std::vector<float> speckle;
+  if (noisy && noise.speckle) {
+    speckle = correlatedNoiseField(width, height, std::max(noise.speckle_size_px, 1), rng);
+  }
+
   // Pass 2: sensor effects on the depth image, in the documented order.
   const double min_cos_incidence = std::cos(degToRad(noise.max_incidence_deg));
-  const double focal_baseline = cam.fx * noise.baseline;
   std::vector<double> measured(depth);
   for (int v = 0; v < height && noisy; ++v) {
     for (int u = 0; u < width; ++u) {
@@ -421,6 +723,7 @@ RenderedScene renderScene(const SceneSpec& spec) {
         }
       }
       if (noise.axial_noise) z += noise.axialSigma(static_cast<float>(z)) * standard_normal(rng);
+      if (!speckle.empty()) z += noise.speckle_sigma_quadratic * z * z * speckle[i];
       if (noise.disparity_quantisation && noise.disparity_step_px > 0 && z > 0) {
         const double step = noise.disparity_step_px;
         const double disparity = std::round(focal_baseline / z / step) * step;
@@ -460,7 +763,11 @@ RenderedScene renderScene(const SceneSpec& spec) {
       p.r = static_cast<uint8_t>(std::clamp(colours[i][0], 0.0f, 255.0f));
       p.g = static_cast<uint8_t>(std::clamp(colours[i][1], 0.0f, 255.0f));
       p.b = static_cast<uint8_t>(std::clamp(colours[i][2], 0.0f, 255.0f));
-      if (labels[i] >= 0) ++scene.objects[labels[i]].visible_pixels;
+      if (labels[i] >= 0) {
+        GroundTruthObject& object = scene.objects[labels[i]];
+        ++object.visible_pixels;
+        object.at_image_border |= u == 0 || v == 0 || u == width - 1 || v == height - 1;
+      }
     }
   }
   scene.cloud = cloud;
@@ -618,6 +925,96 @@ SceneSpec jitteredPaperScene(std::mt19937& rng) {
   return spec;
 }
 
+namespace {
+
+// Where the ray through pixel (u, v) meets the horizontal plane at world height z; false when
+// it points away from it.
+bool pixelOnPlane(const SceneSpec& spec, float u, float v, float z, Eigen::Vector2f& xy) {
+  const Eigen::Isometry3f pose = cameraPose(spec);
+  const Eigen::Vector3f dir =
+      pose.linear() * Eigen::Vector3f((u - spec.camera.cx) / spec.camera.fx,
+                                      (v - spec.camera.cy) / spec.camera.fy, 1);
+  const float t = (z - pose.translation().z()) / dir.z();
+  if (!(t > 0)) return false;
+  xy = (pose.translation() + t * dir).head<2>();
+  return true;
+}
+
+}  // namespace
+
+SceneSpec everydayScene(uint32_t seed, SensorModel sensor) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  auto between = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
+  SceneSpec spec;
+  setSensor(spec, sensor);
+  spec.table.length = 1.6f;
+  spec.table.width = 1.0f;
+  spec.seed = static_cast<uint32_t>(rng());
+  const float camera_height = between(0.5f, 0.7f), tilt = between(40.0f, 60.0f);
+  spec.placement.tilt_deg = tilt;
+  spec.placement.distance = camera_height / std::sin(degToRad(tilt));
+  spec.placement.yaw_deg = between(0.0f, 360.0f);
+  spec.placement.fixed_look_at = true;
+  spec.placement.look_at = {between(-0.15f, 0.15f), between(-0.1f, 0.1f)};
+  const Eigen::Isometry3f camera_from_world = cameraPose(spec).inverse();
+
+  const float edge_margin = 0.05f, min_gap = 0.03f, image_margin_px = 30.0f;
+  // The border box first (it has the fewest places), then 4 of the other kinds.
+  std::vector<int> kinds(kEverydayKinds - 1);
+  std::iota(kinds.begin(), kinds.end(), 0);
+  std::shuffle(kinds.begin(), kinds.end(), rng);
+  kinds.resize(4);
+  kinds.insert(kinds.begin(), static_cast<int>(EverydayKind::BorderBox));
+  const float min_range = std::max(0.4f, spec.noise.min_range + 0.1f);
+  for (const int kind_index : kinds) {
+    const auto kind = static_cast<EverydayKind>(kind_index);
+    ObjectSpec object = everydayObject(kind, static_cast<int>(rng() % 2));
+    for (int tries = 0; tries < 500; ++tries) {
+      object.yaw = between(0.0f, 2.0f * static_cast<float>(kPi));
+      const Eigen::Vector2f extent = object.footprintHalfExtents();
+      const float centre_z = spec.table.height + object.objectHeight() / 2;
+      if (kind == EverydayKind::BorderBox) {  // centre on the left, right or bottom border
+        const int side = static_cast<int>(rng() % 3);
+        const float w = static_cast<float>(spec.camera.width - 1),
+                    h = static_cast<float>(spec.camera.height - 1);
+        const float u = side == 2 ? between(0.1f, 0.9f) * w : (side == 0 ? 0.0f : w);
+        const float v = side == 2 ? h : between(0.2f, 1.0f) * h;
+        if (!pixelOnPlane(spec, u, v, centre_z, object.position_on_table)) continue;
+      } else {
+        object.position_on_table = {between(-0.8f, 0.8f), between(-0.5f, 0.5f)};
+      }
+      const Eigen::Vector2f& p = object.position_on_table;
+      if (std::abs(p.x()) + extent.x() > spec.table.length / 2 - edge_margin ||
+          std::abs(p.y()) + extent.y() > spec.table.width / 2 - edge_margin) {
+        continue;
+      }
+      bool overlaps = false;
+      for (const auto& other : spec.objects) {
+        overlaps |= (p - other.position_on_table).norm() <
+                    object.footprintRadius() + other.footprintRadius() + min_gap;
+      }
+      const Eigen::Vector3f centre = camera_from_world * Eigen::Vector3f(p.x(), p.y(), centre_z);
+      const float range = centre.norm();
+      if (overlaps || range < min_range || range > 1.2f) continue;
+      const float u = spec.camera.fx * centre.x() / centre.z() + spec.camera.cx;
+      const float v = spec.camera.fy * centre.y() / centre.z() + spec.camera.cy;
+      const bool inside = u >= image_margin_px && v >= image_margin_px &&
+                          u <= spec.camera.width - 1 - image_margin_px &&
+                          v <= spec.camera.height - 1 - image_margin_px;
+      if (kind != EverydayKind::BorderBox && !inside) continue;
+      spec.objects.push_back(object);
+      break;
+    }
+  }
+  // Half of the tables stand 0-0.2 m before a wall (on real frames its clusters became large
+  // cones), when the camera is on this side of it.
+  spec.table.wall_distance = between(0.0f, 0.2f);
+  const float wall_y = spec.table.width / 2 + spec.table.wall_distance;
+  spec.table.back_wall = unit(rng) < 0.5f && cameraPose(spec).translation().y() < wall_y - 0.1f;
+  return spec;
+}
+
 // ---- output ----
 
 namespace {
@@ -633,6 +1030,24 @@ std::string jsonArray(const Vector& v) {
 
 std::string jsonQuaternion(const Eigen::Quaternionf& q) {
   return jsonArray(Eigen::Vector4f(q.x(), q.y(), q.z(), q.w()));
+}
+
+const char* formName(ObjectForm form) {
+  switch (form) {
+    case ObjectForm::Plain:
+      return "plain";
+    case ObjectForm::Bottle:
+      return "bottle";
+    case ObjectForm::FlatBottle:
+      return "flat bottle";
+    case ObjectForm::Bowl:
+      return "bowl";
+    case ObjectForm::Mug:
+      return "mug";
+    case ObjectForm::LyingCan:
+      return "lying can";
+  }
+  return "";
 }
 
 std::string jsonString(const std::string& s) {
@@ -677,7 +1092,12 @@ std::string groundTruthJson(const RenderedScene& scene) {
       << ", \"max_incidence_deg\": " << n.max_incidence_deg
       << ",\n    \"random_dropout\": " << n.random_dropout
       << ", \"dropout_probability\": " << n.dropout_probability
-      << ", \"min_range\": " << n.min_range << ", \"max_range\": " << n.max_range << "},\n";
+      << ", \"min_range\": " << n.min_range << ", \"max_range\": " << n.max_range
+      << ",\n    \"edge_bleeding\": " << n.edge_bleeding
+      << ", \"edge_bleed_px\": " << n.edge_bleed_px << ", \"stereo_shadow\": " << n.stereo_shadow
+      << ", \"speckle\": " << n.speckle
+      << ", \"speckle_sigma_quadratic\": " << n.speckle_sigma_quadratic
+      << ", \"speckle_size_px\": " << n.speckle_size_px << "},\n";
   out << "  \"table\": {\"length\": " << spec.table.length << ", \"width\": " << spec.table.width
       << ", \"height\": " << spec.table.height << ", \"thickness\": " << spec.table.thickness
       << ", \"back_wall\": " << spec.table.back_wall
@@ -688,7 +1108,9 @@ std::string groundTruthJson(const RenderedScene& scene) {
     const GroundTruthObject& o = scene.objects[i];
     const ObjectSpec& s = spec.objects[i];
     out << (i ? "," : "") << "\n    {\"type\": \"" << shapeTypeName(o.type)
-        << "\", \"name\": " << jsonString(o.name) << ", \"visible_pixels\": " << o.visible_pixels
+        << "\", \"name\": " << jsonString(o.name) << ", \"form\": \"" << formName(o.form)
+        << "\", \"visible_pixels\": " << o.visible_pixels
+        << ", \"at_image_border\": " << o.at_image_border
         << ",\n     \"center\": " << jsonArray(o.center)
         << ", \"orientation_xyzw\": " << jsonQuaternion(o.orientation)
         << ", \"axis\": " << jsonArray(o.axis());

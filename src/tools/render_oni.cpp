@@ -20,7 +20,8 @@
 namespace {
 
 const char* kUsage =
-    "usage: render_oni [--paper | --objects K] [--seed N] [--frames N] [--repeat] [--qvga]"
+    "usage: render_oni [--paper | --objects K | --everyday] [--sensor kinect|realsense]"
+    " [--seed N] [--frames N] [--repeat] [--qvga]"
     " [--noiseless] [--no-color] [--distance M] [--tilt DEG] [--yaw DEG] [--fps N]"
     " [--truncate BYTES] [--json] --out FILE.oni";
 

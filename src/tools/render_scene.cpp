@@ -1,5 +1,6 @@
-// Renders one Kinect-like table-top scene: PREFIX.pcd (binary, organised, optical frame) and
-// PREFIX.json (ground truth). Optionally PREFIX_depth.pgm / PREFIX_rgb.ppm for a quick look.
+// Renders one Kinect-like (or RealSense-like) table-top scene: PREFIX.pcd (binary, organised,
+// optical frame) and PREFIX.json (ground truth). Optionally PREFIX_depth.pgm / PREFIX_rgb.ppm for a
+// quick look.
 #include "tabletop_shapes/sim/scene_options.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
@@ -14,8 +15,9 @@
 namespace {
 
 const char* kUsage =
-    "usage: render_scene [--seed N] [--paper] [--objects K] [--noiseless] [--distance M]"
-    " [--tilt DEG] [--yaw DEG] [--images] --out PREFIX";
+    "usage: render_scene [--seed N] [--paper | --objects K | --everyday]"
+    " [--sensor kinect|realsense] [--noiseless] [--distance M] [--tilt DEG] [--yaw DEG]"
+    " [--images] --out PREFIX";
 
 int usageError(const std::string& what) {
   std::cerr << "render_scene: " << what << "; " << kUsage << "\n";

@@ -1,12 +1,15 @@
 // Known-answer tests of the rendered-scene generator: exact geometry when noiseless, the
 // documented noise statistics, determinism, valid random layouts, and the written files.
+#include "tabletop_shapes/sim/evaluation.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <cstdio>
 #include <map>
 
@@ -378,6 +381,365 @@ TEST(SceneRenderer, WritesPcdAndJson) {
   RenderedScene reloaded;
   reloaded.cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>(loaded);
   EXPECT_TRUE(sameCloud(scene, reloaded));
+}
+
+// Object points in the frame of the object's ground-truth solid (centre, z = axis).
+std::vector<Eigen::Vector3f> pointsInTruthFrame(const RenderedScene& scene, int label) {
+  const GroundTruthObject& truth = scene.objects.at(label);
+  std::vector<Eigen::Vector3f> local;
+  for (size_t i = 0; i < scene.cloud->size(); ++i) {
+    if (scene.labels[i] != label) continue;
+    local.push_back(truth.orientation.inverse() *
+                    (scene.cloud->points[i].getVector3fMap() - truth.center));
+  }
+  return local;
+}
+
+// Each everyday object, noiseless: its points lie inside its ground-truth solid (a mug's
+// handle excepted), reach its top (the highest point is the object's height within 2 mm) and
+// its width.
+TEST(SceneRenderer, EverydayObjectsRenderAsTheirTruthSays) {
+  for (int k = 0; k < kEverydayKinds; ++k) {
+    for (int variant : {0, 1}) {
+      const ObjectSpec object = everydayObject(static_cast<EverydayKind>(k), variant);
+      SceneSpec spec = singleObjectScene(object);
+      spec.objects[0].yaw = degToRad(-20.0f);  // a mug's handle seen from its side
+      spec.placement = {0.8f, 50.0f, 70.0f};
+      const RenderedScene scene = renderScene(spec);
+      const GroundTruthObject& truth = scene.objects[0];
+      const std::string name = object.name + " " + std::to_string(variant);
+      ASSERT_GT(truth.visible_pixels, 500) << name;
+      float top = 0.0f, widest = 0.0f;
+      for (size_t i = 0; i < scene.cloud->size(); ++i) {
+        if (scene.labels[i] != 0) continue;
+        top = std::max(top,
+                       scene.table_plane.signedDistance(scene.cloud->points[i].getVector3fMap()));
+      }
+      EXPECT_NEAR(top, object.objectHeight(), 0.002f) << name;
+      const bool mug = object.form == ObjectForm::Mug;
+      int outside = 0, handle = 0;
+      for (const Eigen::Vector3f& p : pointsInTruthFrame(scene, 0)) {
+        const float along = p.z() + truth.height / 2;  // from the solid's bottom (or end)
+        if (truth.type == ShapeType::Cube) {
+          outside += ((p.cwiseAbs() - truth.dimensions / 2).array() > 1e-4f).any();
+          widest = std::max(widest, p.head<2>().cwiseAbs().maxCoeff());
+          continue;
+        }
+        const float radial = p.head<2>().norm();
+        const float slope = (truth.radius_top - truth.radius_bottom) / truth.height;
+        const bool beyond = radial > truth.radius_bottom + slope * along + 1e-4f ||
+                            std::abs(p.z()) > truth.height / 2 + 1e-4f;
+        (mug ? handle : outside) += beyond;
+        if (!beyond) widest = std::max(widest, radial);
+      }
+      EXPECT_EQ(outside, 0) << name;
+      if (mug) {
+        EXPECT_GT(handle, 100) << "the handle is rendered";
+      }
+      const float half_width = truth.type == ShapeType::Cube
+                                   ? truth.dimensions.head<2>().maxCoeff() / 2
+                                   : std::max(truth.radius_bottom, truth.radius_top);
+      EXPECT_GT(widest, half_width - 0.003f) << name;
+      if (object.form == ObjectForm::LyingCan) {
+        EXPECT_NEAR(truth.axis().dot(scene.up), 0.0f, 1e-5f);
+        EXPECT_NEAR(scene.table_plane.signedDistance(truth.center), object.radius_bottom, 1e-5f);
+      } else {
+        EXPECT_LT((truth.axis() - scene.up).norm(), 1e-5f) << name;
+      }
+    }
+  }
+}
+
+// A bowl is hollow: seen from above, its inner floor (one wall thickness above the table,
+// inside the foot) and its inner wall are visible.
+TEST(SceneRenderer, BowlInsideIsVisibleFromAbove) {
+  const ObjectSpec bowl = everydayObject(EverydayKind::Bowl);
+  SceneSpec spec = singleObjectScene(bowl);
+  spec.placement = {0.7f, 60.0f, 0.0f};
+  const RenderedScene scene = renderScene(spec);
+  int floor = 0, inner_wall = 0;
+  const float slope = (bowl.radius_top - bowl.radius_bottom) / bowl.height;
+  for (const Eigen::Vector3f& p : pointsInTruthFrame(scene, 0)) {
+    const float height = p.z() + bowl.height / 2, radial = p.head<2>().norm();
+    if (std::abs(height - bowl.wall_thickness) < 1e-4f && radial < bowl.radius_bottom) ++floor;
+    const float inner_radius = bowl.radius_bottom + slope * height - bowl.wall_thickness;
+    if (height > 0.01f && height < bowl.height - 0.001f && radial < inner_radius + 2e-4f) {
+      ++inner_wall;
+    }
+  }
+  EXPECT_GT(floor, 300);
+  EXPECT_GT(inner_wall, 1000);
+}
+
+// Everyday scenes: steep views (0.5-0.7 m above the table, 40-60 deg down), objects 0.4-1.2 m
+// away, and a border box centred on the image border, with pixels on it and about half of it
+// out of view.
+TEST(SceneRenderer, EverydayScenesHaveSteepViewsAndBorderCutBoxes) {
+  int border_boxes = 0;
+  for (uint32_t seed = 1; seed <= 6; ++seed) {
+    for (SensorModel sensor : {SensorModel::KinectV1, SensorModel::RealSenseD435}) {
+      const SceneSpec spec = everydayScene(seed, sensor);
+      EXPECT_GE(spec.objects.size(), 4u) << seed;
+      const float above = spec.placement.distance * std::sin(degToRad(spec.placement.tilt_deg));
+      EXPECT_GE(above, 0.5f - 1e-4f);
+      EXPECT_LE(above, 0.7f + 1e-4f);
+      EXPECT_GE(spec.placement.tilt_deg, 40.0f);
+      EXPECT_LE(spec.placement.tilt_deg, 60.0f);
+      EXPECT_EQ(spec.camera.fx, sensor == SensorModel::KinectV1 ? 575.8f : 385.0f);
+      const RenderedScene scene = renderScene(spec);
+      for (size_t k = 0; k < scene.objects.size(); ++k) {
+        const GroundTruthObject& truth = scene.objects[k];
+        EXPECT_GE(truth.center.norm(), 0.4f);
+        EXPECT_LE(truth.center.norm(), 1.2f);
+        if (truth.name != everydayKindName(EverydayKind::BorderBox)) continue;
+        ++border_boxes;
+        if (truth.visible_pixels < 100) continue;  // hidden behind another object
+        EXPECT_TRUE(truth.at_image_border) << seed;
+        const float u = spec.camera.fx * truth.center.x() / truth.center.z() + spec.camera.cx;
+        const float v = spec.camera.fy * truth.center.y() / truth.center.z() + spec.camera.cy;
+        const float to_border =
+            std::min({u, spec.camera.width - 1 - u, spec.camera.height - 1 - v});
+        EXPECT_NEAR(to_border, 0.0f, 0.5f) << seed;
+        // About half out of view: the same camera with a wider and taller image (the same
+        // rays, more of them) sees about twice its pixels.
+        SceneSpec wider = spec;
+        wider.camera.width += 400;
+        wider.camera.height += 200;
+        wider.camera.cx += 200;
+        const double in_view = static_cast<double>(truth.visible_pixels) /
+                               renderScene(wider).objects[k].visible_pixels;
+        EXPECT_GT(in_view, 0.2) << seed;
+        EXPECT_LT(in_view, 0.8) << seed;
+      }
+    }
+  }
+  EXPECT_GE(border_boxes, 10);
+}
+
+// RealSense D435 noise on a flat surface facing the camera: sigma(z) = 4.16 mm * z^2 (per
+// pixel and speckle together, within 20 %), and neighbouring errors are correlated by the
+// speckle (~0.39: speckle variance share 0.49 times the 4/5 overlap of 5 px windows).
+TEST(SceneRenderer, RealSenseNoiseGrowsWithTheSquareOfRange) {
+  for (float range : {1.0f, 2.0f}) {
+    SceneSpec spec;
+    setSensor(spec, SensorModel::RealSenseD435);
+    spec.placement = {range, 90.0f, 0.0f};
+    const RenderedScene scene = renderScene(spec);
+    double sum = 0, sum_sq = 0, neighbour_product = 0;
+    int n = 0, pairs = 0;
+    for (size_t i = 0; i + 1 < scene.cloud->size(); ++i) {
+      // The middle of the table top, away from its edges' flying and bled pixels.
+      const auto& p = scene.cloud->points[i];
+      if (scene.labels[i] != kTableLabel || scene.labels[i + 1] != kTableLabel ||
+          std::abs(p.x) > 0.35f || std::abs(p.y) > 0.35f) {
+        continue;
+      }
+      const double error = scene.cloud->points[i].z - range;
+      sum += error;
+      sum_sq += error * error;
+      ++n;
+      neighbour_product += error * (scene.cloud->points[i + 1].z - range);
+      ++pairs;
+    }
+    ASSERT_GT(n, 15000) << range;
+    const double mean = sum / n, sigma = std::sqrt(sum_sq / n - mean * mean);
+    const double expected = 0.08 * range * range / (385.0 * 0.05);
+    EXPECT_NEAR(spec.noise.depthSigma(range), expected, 0.02 * expected);
+    EXPECT_NEAR(sigma / expected, 1.0, 0.2) << "range " << range;
+    EXPECT_NEAR(mean, 0.0, 0.1 * expected) << "range " << range;
+    const double correlation = (neighbour_product / pairs - mean * mean) / (sigma * sigma);
+    EXPECT_NEAR(correlation, 0.39, 0.1) << "range " << range;
+  }
+}
+
+// Noise switched on with every effect off: for turning on one at a time.
+NoiseModel noEffects() {
+  NoiseModel model = NoiseModel::noiseless();
+  model.enabled = true;
+  model.lateral_noise = model.flying_pixels = model.axial_noise = model.disparity_quantisation =
+      model.grazing_dropout = model.random_dropout = false;
+  return model;
+}
+
+// Stereo shadow alone, looking straight down at a box (top 0.7 m, table 0.8 m away): left of
+// the box top, fx * baseline * (1 / 0.7 - 1 / 0.8) = 3.4 px of table have no return, so 3 or 4
+// pixels a row (the edge falls anywhere within a pixel); right of it none.
+TEST(SceneRenderer, RealSenseHolesOnTheShadowSideOfDepthEdges) {
+  SceneSpec spec;
+  spec.objects = {teapotBox()};  // 0.10 high
+  setSensor(spec, SensorModel::RealSenseD435);
+  spec.placement = {0.8f, 90.0f, 0.0f};
+  NoiseModel shadow_only = noEffects();
+  shadow_only.baseline = 0.05f;
+  shadow_only.stereo_shadow = true;
+  spec.noise = shadow_only;
+  const RenderedScene noisy = renderScene(spec);
+  spec.noise = NoiseModel::noiseless();
+  const RenderedScene clean = renderScene(spec);
+  int rows = 0;
+  for (int v = 0; v < 480; ++v) {
+    const int* row = clean.labels.data() + v * 640;
+    const int first = static_cast<int>(std::find(row, row + 640, 0) - row);
+    if (first >= 640 || first < 10) continue;
+    const int last = 639 - static_cast<int>(std::find(std::reverse_iterator<const int*>(row + 640),
+                                                      std::reverse_iterator<const int*>(row), 0) -
+                                            std::reverse_iterator<const int*>(row + 640));
+    if (row[first - 5] != kTableLabel || last > 630 || row[last + 5] != kTableLabel) continue;
+    ++rows;
+    int holes_left = 0, holes_right = 0;
+    for (int u = first - 1; u >= 0 && !std::isfinite(noisy.cloud->points[v * 640 + u].z); --u) {
+      ++holes_left;
+    }
+    for (int u = last + 1; u < 640 && !std::isfinite(noisy.cloud->points[v * 640 + u].z); ++u) {
+      ++holes_right;
+    }
+    EXPECT_GE(holes_left, 3) << "row " << v;
+    EXPECT_LE(holes_left, 4) << "row " << v;
+    EXPECT_EQ(holes_right, 0) << "row " << v;
+  }
+  EXPECT_GT(rows, 50);
+  for (size_t i = 0; i < clean.labels.size(); ++i) {  // nothing else changed
+    if (std::isfinite(noisy.cloud->points[i].z)) {
+      EXPECT_EQ(noisy.cloud->points[i].z, clean.cloud->points[i].z);
+    }
+  }
+}
+
+// Edge bleeding alone: table pixels next to a nearer object take its depth and label, with
+// probability 1, 2/3, 1/3 at 1, 2, 3 px from it, and none farther away.
+TEST(SceneRenderer, RealSenseEdgeBleedingSmearsTheForeground) {
+  SceneSpec spec = singleObjectScene(teapotBox());
+  NoiseModel bleed_only = noEffects();
+  bleed_only.edge_bleeding = true;
+  bleed_only.edge_bleed_px = 3;
+  spec.noise = bleed_only;
+  const RenderedScene noisy = renderScene(spec);
+  spec.noise = NoiseModel::noiseless();
+  const RenderedScene clean = renderScene(spec);
+  std::map<int, std::pair<int, int>> bled_at;  // distance -> (bled, candidates)
+  for (int v = 4; v < 476; ++v) {
+    for (int u = 4; u < 636; ++u) {
+      const size_t i = static_cast<size_t>(v) * 640 + u;
+      if (clean.labels[i] != kTableLabel) continue;
+      int k_nearest = 99;  // Chebyshev distance to the nearest object pixel nearer by > 3 cm
+      for (int dv = -4; dv <= 4; ++dv) {
+        for (int du = -4; du <= 4; ++du) {
+          const size_t j = i + dv * 640 + du;
+          if (clean.labels[j] == 0 && clean.cloud->points[i].z - clean.cloud->points[j].z > 0.03f) {
+            k_nearest = std::min(k_nearest, std::max(std::abs(du), std::abs(dv)));
+          }
+        }
+      }
+      const bool bled = noisy.labels[i] == 0;
+      if (k_nearest > 4) continue;
+      ++bled_at[k_nearest].second;
+      bled_at[k_nearest].first += bled;
+      if (bled) {
+        EXPECT_LT(noisy.cloud->points[i].z, clean.cloud->points[i].z - 0.03f);
+      }
+    }
+  }
+  ASSERT_GT(bled_at[1].second, 200);
+  EXPECT_EQ(bled_at[1].first, bled_at[1].second);
+  EXPECT_NEAR(static_cast<double>(bled_at[2].first) / bled_at[2].second, 2.0 / 3, 0.08);
+  EXPECT_NEAR(static_cast<double>(bled_at[3].first) / bled_at[3].second, 1.0 / 3, 0.08);
+  EXPECT_EQ(bled_at[4].first, 0);
+}
+
+TEST(SceneRenderer, SensorNames) {
+  SensorModel sensor = SensorModel::KinectV1;
+  ASSERT_TRUE(parseSensorName("realsense", sensor));
+  EXPECT_EQ(sensor, SensorModel::RealSenseD435);
+  EXPECT_STREQ(sensorName(sensor), "realsense");
+  ASSERT_TRUE(parseSensorName("kinect", sensor));
+  EXPECT_EQ(sensor, SensorModel::KinectV1);
+  EXPECT_FALSE(parseSensorName("lidar", sensor));
+}
+
+// ---- scoring everyday objects (evaluation.h): known solids, known answers ----
+
+GroundTruthObject uprightTruth(ShapeType type, float radius_bottom, float radius_top,
+                               float height) {
+  GroundTruthObject truth;  // in a frame with z up
+  truth.type = type;
+  truth.radius_bottom = radius_bottom;
+  truth.radius_top = radius_top;
+  truth.height = height;
+  return truth;
+}
+
+ShapeFit fittedSolid(ShapeType type, float radius_bottom, float radius_top, float height,
+                     const Eigen::Quaternionf& orientation = Eigen::Quaternionf::Identity()) {
+  ShapeFit fit;
+  fit.ok = true;
+  fit.type = type;
+  fit.radius = radius_bottom;
+  fit.radius_bottom = radius_bottom;
+  fit.radius_top = radius_top;
+  fit.height = height;
+  fit.orientation = orientation;
+  return fit;
+}
+
+const Eigen::Vector3f kUp = Eigen::Vector3f::UnitZ();
+const Eigen::Quaternionf kAxisAlongX(Eigen::AngleAxisf(static_cast<float>(kPi / 2),
+                                                       Eigen::Vector3f::UnitY()));
+
+// The soup can typed a cone 22 % too wide, and its box cut by the border typed a
+// cylinder 452 mm across: wrong solids, with their oversize.
+TEST(EverydayScoring, OversizeIsTheLargestExtentRatio) {
+  const GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);
+  const ShapeFit cone = fittedSolid(ShapeType::Cone, 0.0403f, 0.033f, 0.095f);
+  EXPECT_FALSE(expectedSolid(can, cone, kUp));
+  EXPECT_NEAR(oversizePercent(can, cone, kUp), 100.0 * (0.0806 / 0.066 - 1), 0.01);
+  const std::vector<Measure> extents = dimensionErrors(can, cone, kUp);
+  ASSERT_EQ(extents.size(), 3u);
+  EXPECT_EQ(extents[2].name, "extent height");
+  EXPECT_NEAR(extents[2].error_percent, 100.0 * 0.006 / 0.101, 0.01);
+
+  GroundTruthObject box;
+  box.type = ShapeType::Cube;
+  box.dimensions = {0.089f, 0.038f, 0.175f};
+  const ShapeFit round = fittedSolid(ShapeType::Cylinder, 0.226f, 0.226f, 0.175f);
+  EXPECT_NEAR(solidExtents(box, kUp).x(), 0.089f, 1e-6f);
+  // Sorted footprints (0.452, 0.452) against (0.089, 0.038): the width is 11.9 times too large.
+  EXPECT_NEAR(oversizePercent(box, round, kUp), 100.0 * (0.452 / 0.038 - 1), 0.01);
+
+  const ShapeFit smaller = fittedSolid(ShapeType::Cylinder, 0.032f, 0.032f, 0.1f);
+  EXPECT_TRUE(expectedSolid(can, smaller, kUp));
+  EXPECT_LT(oversizePercent(can, smaller, kUp), 0.0);
+}
+
+// A bowl is a cone opening upward: the upside-down taper is the wrong solid.
+TEST(EverydayScoring, BowlTaperMustOpenUpward) {
+  const GroundTruthObject bowl = uprightTruth(ShapeType::Cone, 0.04f, 0.075f, 0.065f);
+  EXPECT_TRUE(expectedSolid(bowl, fittedSolid(ShapeType::Cone, 0.045f, 0.07f, 0.065f), kUp));
+  EXPECT_FALSE(expectedSolid(bowl, fittedSolid(ShapeType::Cone, 0.07f, 0.045f, 0.065f), kUp));
+  EXPECT_FALSE(expectedSolid(bowl, fittedSolid(ShapeType::Cylinder, 0.06f, 0.06f, 0.065f), kUp));
+}
+
+// A lying can: a lying cylinder or its bounding box is right, an upright cylinder is not.
+TEST(EverydayScoring, LyingCanIsALyingCylinderOrItsBox) {
+  GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);
+  can.form = ObjectForm::LyingCan;
+  can.orientation = kAxisAlongX;
+  EXPECT_TRUE(solidExtents(can, kUp).isApprox(Eigen::Vector3f(0.101f, 0.066f, 0.066f)));
+
+  const ShapeFit lying = fittedSolid(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f, kAxisAlongX);
+  EXPECT_TRUE(expectedSolid(can, lying, kUp));
+  EXPECT_NEAR(oversizePercent(can, lying, kUp), 0.0, 1e-4);
+  for (const Measure& m : dimensionErrors(can, lying, kUp)) EXPECT_NEAR(m.error_percent, 0, 1e-4);
+
+  ShapeFit box = fittedSolid(ShapeType::Cube, 0, 0, 0);
+  box.dimensions = {0.066f, 0.101f, 0.066f};
+  EXPECT_TRUE(expectedSolid(can, box, kUp));
+  const std::vector<Measure> box_errors = dimensionErrors(can, box, kUp);
+  ASSERT_EQ(box_errors.size(), 3u);  // length, width, height of the can's bounding box
+  for (const Measure& m : box_errors) EXPECT_NEAR(m.error_percent, 0, 1e-4) << m.name;
+
+  const ShapeFit upright = fittedSolid(ShapeType::Cylinder, 0.0505f, 0.0505f, 0.066f);
+  EXPECT_FALSE(expectedSolid(can, upright, kUp));
+  EXPECT_NEAR(oversizePercent(can, upright, kUp), 100.0 * (0.101 / 0.066 - 1), 0.01);
 }
 
 TEST(SceneRenderer, DegenerateInputDoesNotCrash) {

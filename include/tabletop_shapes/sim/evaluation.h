@@ -38,6 +38,28 @@ struct Measure {
 // reverse) gets only its volume compared.
 std::vector<Measure> compareToTruth(const GroundTruthObject& truth, const ShapeFit& fit);
 
+// ---- everyday objects (issue 12): the solid expected for each kind ----
+
+// The solid's extents in the table frame (`up` in its frame): footprint length >= width, then
+// height. A true lying can: (length, diameter, diameter); a fitted box: the edge nearest up is
+// its height; a fitted round solid whose axis is within 45 deg of up stands (diameter of its
+// wider end twice, height), else it lies (as the can).
+Eigen::Vector3f solidExtents(const GroundTruthObject& truth, const Eigen::Vector3f& up);
+Eigen::Vector3f solidExtents(const ShapeFit& fit, const Eigen::Vector3f& up);
+// The largest fitted extent relative to the true one, minus 1, in percent (the issue's
+// "never more than 20 % larger in any dimension"); negative when the fit is smaller in all.
+double oversizePercent(const GroundTruthObject& truth, const ShapeFit& fit,
+                       const Eigen::Vector3f& up);
+// The fit is the solid expected for the true object: its type, a cone tapering the same way
+// (a bowl opens upward), and a lying can a cylinder lying down (axis more than 45 deg from up)
+// or its bounding box.
+bool expectedSolid(const GroundTruthObject& truth, const ShapeFit& fit, const Eigen::Vector3f& up);
+// Dimension errors (eq. 17, no volume): the measures of compareToTruth when the solid is the
+// expected one (a lying can's box against the can's bounding box), else the extents of both
+// solids ("extent length", "extent width", "extent height").
+std::vector<Measure> dimensionErrors(const GroundTruthObject& truth, const ShapeFit& fit,
+                                     const Eigen::Vector3f& up);
+
 // ---- labelled real scenes (OSD: label 1-9 table, label / 10 - 1 = object index) ----
 struct LabelledScore {
   double table_precision = 0.0, table_recall = 0.0;    // per point, vs labels 1-9

@@ -1,6 +1,6 @@
 // The scene a rendering tool draws, chosen on its command line: shared by render_scene and
-// render_oni, so that both read --paper, --objects, --seed, --noiseless, --distance, --tilt
-// and --yaw the same way.
+// render_oni, so that both read --paper, --objects, --everyday, --sensor, --seed, --noiseless,
+// --distance, --tilt and --yaw the same way.
 #pragma once
 
 #include "tabletop_shapes/sim/scene_renderer.h"
@@ -12,7 +12,9 @@ namespace tabletop_shapes {
 namespace sim {
 
 struct SceneChoice {
-  bool paper = false;  // the paper's four objects, camera at 1 m, 40 deg down, yaw 90 deg
+  bool paper = false;     // the paper's four objects, camera at 1 m, 40 deg down, yaw 90 deg
+  bool everyday = false;  // everydayScene(seed, sensor)
+  SensorModel sensor = SensorModel::KinectV1;
   bool noiseless = false;
   uint32_t seed = 1;
   int objects = 0;  // random scene with this many objects; 0: 1-4 at random

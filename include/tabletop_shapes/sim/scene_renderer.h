@@ -1,7 +1,8 @@
-// Rendered Kinect-v1-like test scenes: objects (boxes, cylinders, truncated cones) standing on a
-// table, ray-cast into an organised 640x480 pcl::PointXYZRGB cloud in the camera OPTICAL frame
-// (x right, y down, z forward; NaN = no return), with exact ground truth in the same frame.
-// ROS-free (PCL container + Eigen + std). Used by tests, the accuracy benchmark and recordings.
+// Rendered Kinect-v1-like or RealSense-D4xx-like test scenes: objects (boxes, cylinders,
+// truncated cones, and everyday objects: bottles, bowls, mugs, lying cans) on a table, ray-cast
+// into an organised 640x480 pcl::PointXYZRGB cloud in the camera OPTICAL frame (x right, y down, z
+// forward; NaN = no return), with exact ground truth in the same frame. ROS-free (PCL container +
+// Eigen + std). Used by tests, the accuracy benchmark and recordings.
 //
 // World frame: z up, floor at z = 0, table top centred above the origin, its long edge along x.
 // Camera: level (no roll), looking at the objects' centre on the table top from `distance`,
@@ -29,12 +30,28 @@
 //  5. missing returns: at grazing incidence (angle between the ray and the surface normal above
 //     max_incidence_deg) and random dropout with probability dropout_probability per pixel;
 //  6. range limits: no return outside [min_range, max_range] (Kinect v1: ~0.45 .. ~5 m).
+// Active stereo (RealSense D4xx; all off for the Kinect v1) adds, between steps 1 and 2:
+//  1a. edge bleeding: the correlation window smears foreground depth over the background: a
+//     pixel within edge_bleed_px (Chebyshev) of a pixel nearer by more than flying_min_jump
+//     takes that pixel's depth and label, with probability 1 - (k - 1) / edge_bleed_px at
+//     distance k (so ~edge_bleed_px / 2 px on average);
+//  1b. stereo shadow: the depth is computed in the left imager; background the right imager
+//     (baseline to the right) cannot see, because a nearer surface hides it, has no return:
+//     pixel u is hidden when a pixel u' > u on its row has disparity d(u') - d(u) >= u' - u,
+//     a band of fx * baseline * (1 / z_back - 1 / z_front) px left of each near edge;
+// and, after step 3:
+//  3a. speckle: depth noise correlated over speckle_size_px (a box-filtered unit Gaussian
+//     field), sigma speckle_sigma_quadratic * z^2, as the projected pattern's speckle and the
+//     correlation window give; with the per-pixel axial noise (sigma axial_sigma_quadratic *
+//     z^2) the total is depthSigma(z) = z^2 * subpixel / (fx * baseline) (Intel's RMS formula,
+//     0.08 px subpixel: 4.2 mm at 1 m, 17 mm at 2 m for fx 385 px, baseline 50 mm).
 // Random numbers: one std::mt19937 seeded with SceneSpec::seed, drawn in a fixed order, so the
 // same spec always renders the same cloud.
 #pragma once
 
 #include "tabletop_shapes/core/types.h"
 
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <string>
@@ -42,6 +59,12 @@
 
 namespace tabletop_shapes {
 namespace sim {
+
+// The depth sensors the renderer imitates; the Kinect v1 is the default everywhere.
+enum class SensorModel { KinectV1, RealSenseD435 };
+const char* sensorName(SensorModel sensor);  // "kinect", "realsense"
+// "kinect" / "realsense" (also "kinect-v1", "d435"); false when unknown.
+bool parseSensorName(const std::string& text, SensorModel& sensor);
 
 // Kinect v1 depth camera, VGA. Principal point at the image centre.
 struct CameraIntrinsics {
@@ -51,6 +74,8 @@ struct CameraIntrinsics {
   float fy = 575.8f;
   float cx = 319.5f;
   float cy = 239.5f;
+  // RealSense D435 depth at 640 x 480: ~87 x 58 deg field of view.
+  static CameraIntrinsics realSenseD435() { return {640, 480, 385.0f, 385.0f, 319.5f, 239.5f}; }
 };
 
 // See the file comment for the meaning and the order of the effects.
@@ -82,16 +107,33 @@ struct NoiseModel {
   float min_range = 0.45f;  // depth z limits [m], applied even when noiseless
   float max_range = 5.0f;
 
-  // Axial standard deviation at depth z [m].
+  // Active stereo only (off for the Kinect v1; see the file comment).
+  bool edge_bleeding = false;
+  int edge_bleed_px = 3;  // widest smear [px]
+  bool stereo_shadow = false;
+  bool speckle = false;
+  float speckle_sigma_quadratic = 0.0f;  // [m / m^2]
+  int speckle_size_px = 5;               // correlation window edge [px]
+
+  // Axial standard deviation at depth z [m] (the per-pixel part).
   float axialSigma(float z) const {
     const float dz = z - axial_reference_range;
     return axial_sigma_base + axial_sigma_quadratic * dz * dz;
+  }
+  // Standard deviation of a flat surface's depth at z, per-pixel and speckle together [m].
+  float depthSigma(float z) const {
+    const float axial = axial_noise ? axialSigma(z) : 0.0f;
+    const float correlated = speckle ? speckle_sigma_quadratic * z * z : 0.0f;
+    return std::sqrt(axial * axial + correlated * correlated);
   }
   static NoiseModel noiseless() {
     NoiseModel model;
     model.enabled = false;
     return model;
   }
+  static NoiseModel kinectV1() { return {}; }
+  // RealSense D435 (active stereo, baseline 50 mm) with CameraIntrinsics::realSenseD435().
+  static NoiseModel realSenseD435();
 };
 
 // Table top: a box of size x size y thickness, top face at `height`, centred above the world
@@ -106,11 +148,24 @@ struct TableSpec {
   float wall_distance = 0.5f;    // [m]
 };
 
-// One upright object standing on the table top. Cube: box_size = (length along its x, width
-// along its y, height); round objects: radius_bottom (at the table), radius_top, height
-// (cylinder: radius_top == radius_bottom).
+// What is rendered for an object beyond the plain solid of its `type`. The ground truth stays
+// that solid (what a grasp planner should get): the object's extents, not its details.
+enum class ObjectForm {
+  Plain,       // the solid itself
+  Bottle,      // Cylinder: body (radius_bottom), shoulder, neck, cap; height = to the cap's top
+  FlatBottle,  // Cube: body with rounded vertical edges and a round cap on top; box_size overall
+  Bowl,        // Cone (radius_top > radius_bottom): hollow, open at the top, wall_thickness
+  Mug,         // Cylinder: hollow, open at the top, with a handle on its +x side (not in truth)
+  LyingCan,    // Cylinder lying on its side: axis horizontal along the object's x (yaw)
+};
+
+// One object on the table top. Cube: box_size = (length along its x, width along its y,
+// height); round objects: radius_bottom (at the table), radius_top, height (cylinder:
+// radius_top == radius_bottom; a lying can: radius_bottom, and height = its length).
 struct ObjectSpec {
   ShapeType type = ShapeType::Cube;
+  ObjectForm form = ObjectForm::Plain;
+  float wall_thickness = 0.004f;  // Bowl, Mug [m]
   Eigen::Vector3f box_size{0.1f, 0.1f, 0.1f};
   float radius_bottom = 0.04f;
   float radius_top = 0.04f;
@@ -119,7 +174,11 @@ struct ObjectSpec {
   float yaw = 0.0f;                               // about world z [rad]
   std::string name;  // optional label (e.g. "milk-tea box"), copied into the ground truth
 
-  float objectHeight() const { return type == ShapeType::Cube ? box_size.z() : height; }
+  // Top above the table [m].
+  float objectHeight() const {
+    if (form == ObjectForm::LyingCan) return 2 * radius_bottom;
+    return type == ShapeType::Cube ? box_size.z() : height;
+  }
   // Half extents of the footprint along world x and y (exact for boxes, discs for round ones).
   Eigen::Vector2f footprintHalfExtents() const;
   // Radius of a disc around position_on_table that contains the footprint.
@@ -132,10 +191,33 @@ ObjectSpec teapotBox();   // box 0.175 x 0.12 x 0.10
 ObjectSpec steelMug();    // cylinder r 0.0415 h 0.16
 ObjectSpec beaker();      // truncated cone r 0.03 (bottom) - 0.0375 (top) h 0.18
 
+// Everyday objects (issue 12): the kinds seen failing on real RealSense frames, each with the
+// solid expected for it: bottles, cans, markers, mugs and lying cans are cylinders (a mug's
+// handle is ignored; a lying can may also be answered by its bounding box), flattened bottles
+// and border boxes are boxes, bowls are truncated cones opening upward.
+enum class EverydayKind {
+  Bottle,        // d 65 h 205 or d 80 h 260 mm
+  FlatBottle,    // 50 x 85 x 175 or 65 x 98 x 250 mm, rounded edges, cap
+  ShortWideCan,  // d 85 h 33 mm
+  Marker,        // d 18 h 140 mm
+  SoupCan,       // d 66 h 101 mm
+  LyingCan,      // d 66 l 101 mm, axis horizontal
+  Bowl,          // d 80 (foot) - 150 (rim) h 65 mm, hollow
+  Mug,           // d 82 h 95 mm, hollow, handle
+  BorderBox,     // 89 x 38 x 175 mm standing, placed half outside the image
+};
+constexpr int kEverydayKinds = 9;
+const char* everydayKindName(EverydayKind kind);  // also the ObjectSpec's name
+// The object of a kind at the origin, yaw 0; `variant` picks one of its sizes (any int).
+ObjectSpec everydayObject(EverydayKind kind, int variant = 0);
+
 struct CameraPlacement {
   float distance = 1.0f;   // from the objects' centre on the table top [m]
   float tilt_deg = 40.0f;  // below level
   float yaw_deg = 0.0f;    // heading of the viewing direction about world z
+  // The camera looks at this world (x, y) on the table top instead of the objects' centre.
+  bool fixed_look_at = false;
+  Eigen::Vector2f look_at{0.0f, 0.0f};
 };
 
 struct SceneSpec {
@@ -158,8 +240,10 @@ struct GroundTruthObject {
   Eigen::Vector3f sorted_dimensions = Eigen::Vector3f::Zero();  // cube: descending
   float radius_bottom = 0.0f;                                   // round objects [m]
   float radius_top = 0.0f;
-  float height = 0.0f;     // all types [m]
-  int visible_pixels = 0;  // valid cloud points on this object (after noise)
+  float height = 0.0f;  // all types [m] (a lying can: its length along the axis)
+  ObjectForm form = ObjectForm::Plain;
+  int visible_pixels = 0;        // valid cloud points on this object (after noise)
+  bool at_image_border = false;  // some of its valid pixels lie on the image's outer rows / columns
   Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
 };
 
@@ -211,6 +295,18 @@ SceneSpec paperScene(const CameraPlacement& placement = {}, const NoiseModel& no
 // The paper's four objects in a jittered 2 x 2 grid (random slots and yaws) seen from a random
 // camera (0.6-1.5 m, tilt 20-60 deg, any yaw): the benchmark's paper scenes.
 SceneSpec jitteredPaperScene(std::mt19937& rng);
+
+// Camera intrinsics and noise model of a sensor.
+void setSensor(SceneSpec& spec, SensorModel sensor);
+
+// Everyday objects seen by `sensor` from a steep view: camera 0.5-0.7 m above the table,
+// 40-60 deg down, any yaw. A BorderBox, its centre on the image's left, right or bottom border
+// (about half of it out of view), and 4 objects of 4 other kinds (a shuffled list: over many
+// scenes each kind appears about equally often), centred inside the image. Every object is
+// centred 0.4-1.2 m from the camera, and at least 0.1 m beyond the sensor's near limit (0.55 m
+// for the Kinect). An object without a free place is left out. Table 1.6 x 1.0 m; half of the
+// scenes have a wall 0-0.2 m behind it (where the camera is not beyond the wall).
+SceneSpec everydayScene(uint32_t seed, SensorModel sensor);
 
 // Ground truth + scene parameters as a JSON object (hand-written, stable key order).
 std::string groundTruthJson(const RenderedScene& scene);
