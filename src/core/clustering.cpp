@@ -51,7 +51,11 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
       clusters.push_back(part);
     }
   }
-  if (table) return joinInsidesSeenOverRims(clusters, *table, cloud->sensor_origin_.head<3>());
+  if (table) {
+    const Eigen::Vector3f viewpoint = cloud->sensor_origin_.head<3>();
+    return joinPartsHiddenInTheMiddle(joinInsidesSeenOverRims(clusters, *table, viewpoint), *table,
+                                      viewpoint);
+  }
   std::stable_sort(clusters.begin(), clusters.end(),
                    [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });
   return clusters;

@@ -1,6 +1,7 @@
 #include "tabletop_shapes/core/pipeline.h"
 
 #include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/core/support.h"
 #include "tabletop_shapes/core/up_direction.h"
 
 #include <chrono>
@@ -62,8 +63,9 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
 
     stage = Clock::now();
     result.objects.reserve(result.clusters.size());
-    for (const CloudPtr& cluster : result.clusters) {
-      result.objects.push_back(estimator_.estimate(cluster, result.table.plane));
+    const std::vector<Plane> supports = supportPlanes(result.clusters, result.table.plane);
+    for (size_t c = 0; c < result.clusters.size(); ++c) {
+      result.objects.push_back(estimator_.estimate(result.clusters[c], supports[c]));
     }
     result.times.shapes_ms = msSince(stage);
   }

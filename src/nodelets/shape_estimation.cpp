@@ -13,6 +13,7 @@
 //     transform skips the frame with a throttled warning
 //   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
 #include "tabletop_shapes/core/shape_estimator.h"
+#include "tabletop_shapes/core/support.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
@@ -93,9 +94,10 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     objects.table_found = bridge::tableFound(*table);
     if (!objects.table_found) objects.reason = "no table: " + table->reason;
     if (objects.table_found) {
-      const Plane plane = bridge::planeFromMsg(*table);
-      for (const CloudPtr& cluster : splitClusters(*clusters)) {
-        bridge::appendObject(estimator_.estimate(cluster, plane), objects.header, objects);
+      const std::vector<CloudPtr> parts = splitClusters(*clusters);
+      const std::vector<Plane> supports = supportPlanes(parts, bridge::planeFromMsg(*table));
+      for (size_t c = 0; c < parts.size(); ++c) {
+        bridge::appendObject(estimator_.estimate(parts[c], supports[c]), objects.header, objects);
       }
     }
     if (!output_frame_.empty() && output_frame_ != objects.header.frame_id) {

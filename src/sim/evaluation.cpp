@@ -1,5 +1,7 @@
 #include "tabletop_shapes/sim/evaluation.h"
 
+#include "tabletop_shapes/core/table_segmentation.h"
+
 #include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
@@ -302,6 +304,131 @@ LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud
       ++score.objects_found_whole;
     }
   }
+  return score;
+}
+
+bool labelledTablePlane(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud, Plane& plane) {
+  Cloud table;
+  std::vector<int> indices;
+  for (const auto& p : cloud.points) {
+    if (p.label == 0 || p.label >= 10 || !p.getVector3fMap().allFinite()) continue;
+    indices.push_back(static_cast<int>(table.size()));
+    table.push_back(Point(p.x, p.y, p.z));
+  }
+  if (!refinePlaneOLS(table, indices, plane)) return false;
+  if (plane.d < 0.0f) {  // the camera (the origin) above the table
+    plane.normal = -plane.normal;
+    plane.d = -plane.d;
+  }
+  return true;
+}
+
+ObjectCounts& ObjectCounts::operator+=(const ObjectCounts& o) {
+  objects += o.objects;
+  found += o.found;
+  pieces += o.pieces;
+  junk += o.junk;
+  typed += o.typed;
+  type_right += o.type_right;
+  return *this;
+}
+
+namespace {
+
+// A labelled object's points in the table frame (u, v, height): their box and centroid.
+struct LabelledBox {
+  Eigen::Vector3f low = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector3f high = Eigen::Vector3f::Constant(-std::numeric_limits<float>::max());
+  Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+  int points = 0;
+  void add(const Eigen::Vector3f& q) {
+    low = low.cwiseMin(q);
+    high = high.cwiseMax(q);
+    sum += q;
+    ++points;
+  }
+  bool contains(const Eigen::Vector3f& q, float grow) const {
+    return (q.array() >= low.array() - grow).all() && (q.array() <= high.array() + grow).all();
+  }
+};
+
+bool rightType(ExpectedShape expected, const ShapeFit& fit) {
+  if (!fit.ok) return false;
+  return expected == ExpectedShape::Box ? fit.type == ShapeType::Cube : isRound(fit.type);
+}
+
+// `boxes`: object key -> its box; `expected_of_key` the expected shape of a key.
+ObjectCounts countObjects(const std::map<int, LabelledBox>& boxes,
+                          const std::vector<Eigen::Vector3f>& centres,
+                          const std::vector<ShapeFit>& detections,
+                          const std::function<ExpectedShape(int)>& expected_of_key, float grow) {
+  ObjectCounts counts;
+  counts.objects = static_cast<int>(boxes.size());
+  struct Candidate {
+    int key;
+    size_t detection;
+    float distance;
+  };
+  std::vector<Candidate> candidates;
+  for (const auto& [key, box] : boxes) {
+    const Eigen::Vector3f centroid = box.sum / static_cast<float>(box.points);
+    for (size_t d = 0; d < centres.size(); ++d) {
+      if (box.contains(centres[d], grow))
+        candidates.push_back({key, d, (centres[d] - centroid).norm()});
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  std::map<int, bool> key_used;
+  std::vector<bool> detection_used(centres.size(), false);
+  for (const Candidate& c : candidates) {
+    if (key_used[c.key] || detection_used[c.detection]) continue;
+    key_used[c.key] = detection_used[c.detection] = true;
+    ++counts.found;
+    const ExpectedShape expected = expected_of_key(c.key);
+    if (expected == ExpectedShape::Unknown) continue;
+    ++counts.typed;
+    counts.type_right += rightType(expected, detections[c.detection]);
+  }
+  for (size_t d = 0; d < centres.size(); ++d) {
+    if (detection_used[d]) continue;
+    const bool inside_an_object = std::any_of(boxes.begin(), boxes.end(), [&](const auto& entry) {
+      return entry.second.contains(centres[d], grow);
+    });
+    ++(inside_an_object ? counts.pieces : counts.junk);
+  }
+  return counts;
+}
+
+}  // namespace
+
+LabelledObjectScore scoreLabelledObjects(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
+                                         const std::vector<ShapeFit>& detections,
+                                         const std::function<ExpectedShape(int)>& expected,
+                                         float grow) {
+  LabelledObjectScore score;
+  Plane table;
+  if (!labelledTablePlane(cloud, table)) return score;
+  const Eigen::Vector3f& n = table.normal;
+  Eigen::Vector3f u = Eigen::Vector3f::UnitX() - n.x() * n;  // the camera's x on the table
+  if (!(u.norm() > 1e-3f)) u = n.unitOrthogonal();
+  u.normalize();
+  const Eigen::Vector3f v = n.cross(u);
+  auto tableFrame = [&](const Eigen::Vector3f& p) {
+    return Eigen::Vector3f(u.dot(p), v.dot(p), table.signedDistance(p));
+  };
+  std::map<int, LabelledBox> objects, parts;
+  for (const auto& p : cloud.points) {
+    if (p.label < 10 || !p.getVector3fMap().allFinite()) continue;
+    const Eigen::Vector3f q = tableFrame(p.getVector3fMap());
+    objects[static_cast<int>(p.label / 10)].add(q);
+    parts[static_cast<int>(p.label)].add(q);
+  }
+  std::vector<Eigen::Vector3f> centres;
+  for (const ShapeFit& fit : detections) centres.push_back(tableFrame(fit.center));
+  score.whole = countObjects(objects, centres, detections, expected, grow);
+  score.parts = countObjects(
+      parts, centres, detections, [&](int label) { return expected(label / 10); }, grow);
   return score;
 }
 

@@ -94,6 +94,20 @@ inline CloudPtr roundObject(float r_bottom, float r_top, float height,
   return out;
 }
 
+// The camera frame of a sampler's camera looking at the table frame's origin (x right, y down,
+// z forward, camera at the origin as the core assumes), from the table frame.
+inline Eigen::Isometry3f cameraFromTable(const Sampler& s) {
+  Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
+  const Eigen::Vector3f forward = (-s.camera).normalized();
+  const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
+  const Eigen::Vector3f down = forward.cross(right);
+  camera_from_table.linear().row(0) = right;
+  camera_from_table.linear().row(1) = down;
+  camera_from_table.linear().row(2) = forward;
+  camera_from_table.translation() = -(camera_from_table.linear() * s.camera);
+  return camera_from_table;
+}
+
 // The table plane z = 0 (normal up) in the table frame.
 inline Plane tablePlane() { return Plane{Eigen::Vector3f::UnitZ(), 0.0f}; }
 

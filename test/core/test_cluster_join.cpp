@@ -15,17 +15,15 @@
 namespace tabletop_shapes {
 namespace {
 
+using JoinFunction = std::vector<CloudPtr> (*)(std::vector<CloudPtr>, const Plane&,
+                                               const Eigen::Vector3f&);
+
 // Moves table-frame clusters into a camera frame (camera at the origin, as the core assumes)
-// and joins them; returns the sizes of the results, largest first.
-std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame) {
-  const synthetic::Sampler s = synthetic::voxelGridSampler();
-  Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
-  const Eigen::Vector3f forward = (-s.camera).normalized();
-  const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
-  camera_from_table.linear().row(0) = right;
-  camera_from_table.linear().row(1) = forward.cross(right);
-  camera_from_table.linear().row(2) = forward;
-  camera_from_table.translation() = -(camera_from_table.linear() * s.camera);
+// and joins them with `join`; returns the sizes of the results, largest first.
+std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame,
+                                JoinFunction join = joinInsidesSeenOverRims) {
+  const Eigen::Isometry3f camera_from_table =
+      synthetic::cameraFromTable(synthetic::voxelGridSampler());
   std::vector<CloudPtr> clusters;
   for (const CloudPtr& cluster : table_frame) {
     clusters.push_back(std::make_shared<Cloud>(*cluster));
@@ -33,7 +31,7 @@ std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame) {
   }
   const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
   std::vector<size_t> sizes;
-  for (const CloudPtr& c : joinInsidesSeenOverRims(clusters, table, Eigen::Vector3f::Zero())) {
+  for (const CloudPtr& c : join(clusters, table, Eigen::Vector3f::Zero())) {
     sizes.push_back(c->size());
   }
   return sizes;
@@ -142,6 +140,69 @@ TEST(ClusterJoin, SolidNeighboursAndStackedObjectsStayApart) {
   auto upper = synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, s);
   for (auto& p : *upper) p.z += 0.06f;
   EXPECT_EQ(joinedSizes({lower, upper}).size(), 2u);
+}
+
+// Does the line of sight from the camera to p pass through the axis-aligned box [low, high]
+// (table frame)? Slab test on the segment camera -> p.
+bool hiddenByBox(const Eigen::Vector3f& p, const Eigen::Vector3f& camera,
+                 const Eigen::Vector3f& low, const Eigen::Vector3f& high) {
+  const Eigen::Vector3f direction = p - camera;
+  float enter = 0.0f, leave = 0.999f;  // stop short of p: its own surface
+  for (int axis = 0; axis < 3; ++axis) {
+    if (std::abs(direction[axis]) < 1e-9f) {
+      if (camera[axis] < low[axis] || camera[axis] > high[axis]) return false;
+      continue;
+    }
+    float t0 = (low[axis] - camera[axis]) / direction[axis];
+    float t1 = (high[axis] - camera[axis]) / direction[axis];
+    if (t0 > t1) std::swap(t0, t1);
+    enter = std::max(enter, t0);
+    leave = std::min(leave, t1);
+  }
+  return enter < leave;
+}
+
+// The points of `cloud` the camera sees past the box [low, high], split at x = 0 into the part
+// left and the part right of it.
+std::pair<CloudPtr, CloudPtr> partsBesideOccluder(const Cloud& cloud, const Eigen::Vector3f& low,
+                                                  const Eigen::Vector3f& high) {
+  const Eigen::Vector3f camera = synthetic::voxelGridSampler().camera;
+  auto left = std::make_shared<Cloud>(), right = std::make_shared<Cloud>();
+  for (const auto& p : cloud) {
+    if (!hiddenByBox(p.getVector3fMap(), camera, low, high)) (p.x < 0 ? left : right)->push_back(p);
+  }
+  return {left, right};
+}
+
+TEST(ClusterJoin, ObjectHiddenInTheMiddleJoinsItsTwoParts) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();  // camera at y = -0.8, z = 0.6
+  // A 30 x 6 x 7 cm box lying 12 cm behind a standing 8 x 5 x 20 cm box, which hides its middle.
+  const Eigen::Vector3f low(-0.04f, -0.045f, 0.0f), high(0.04f, 0.005f, 0.20f);
+  const CloudPtr occluder = synthetic::box(high - low, {0.0f, -0.02f}, 0.0f, s);
+  const auto [left, right] = partsBesideOccluder(
+      *synthetic::box({0.30f, 0.06f, 0.07f}, {0.0f, 0.10f}, 0.0f, s), low, high);
+  ASSERT_GT(left->size(), 100u);
+  ASSERT_GT(right->size(), 100u);
+  std::vector<size_t> joined = {occluder->size(), left->size() + right->size()};
+  std::sort(joined.rbegin(), joined.rend());
+  EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle), joined);
+
+  // Without the occluder nothing explains the gap: two objects standing apart.
+  EXPECT_EQ(joinedSizes({left, right}, joinPartsHiddenInTheMiddle).size(), 2u);
+  // Two boxes of the same height 16 cm apart behind a 3 cm wide post in front of the gap: the
+  // table shows through most of the gap.
+  const Eigen::Vector3f post_low(-0.015f, -0.045f, 0.0f), post_high(0.015f, -0.015f, 0.20f);
+  const CloudPtr post = synthetic::box(post_high - post_low, {0.0f, -0.03f}, 0.0f, s);
+  Cloud two_boxes = *synthetic::box({0.10f, 0.06f, 0.07f}, {-0.13f, 0.10f}, 0.0f, s);
+  two_boxes += *synthetic::box({0.10f, 0.06f, 0.07f}, {0.13f, 0.10f}, 0.0f, s);
+  const auto [box_left, box_right] = partsBesideOccluder(two_boxes, post_low, post_high);
+  EXPECT_EQ(joinedSizes({post, box_left, box_right}, joinPartsHiddenInTheMiddle).size(), 3u);
+  // Parts whose tops differ are not one solid.
+  auto lower_right = std::make_shared<Cloud>();
+  for (const auto& p : *right) {
+    if (p.z < 0.045f) lower_right->push_back(p);
+  }
+  EXPECT_EQ(joinedSizes({occluder, left, lower_right}, joinPartsHiddenInTheMiddle).size(), 3u);
 }
 
 // OSD learn33 (test/data): the bowl's inside and outer wall were two Euclidean clusters; the

@@ -44,14 +44,7 @@ void toDisparitySteps(Cloud& cloud) {
 std::vector<CloudPtr> split(Cloud scene,
                             const synthetic::Sampler& s = synthetic::voxelGridSampler(),
                             bool disparity_steps = false) {
-  Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
-  const Eigen::Vector3f forward = (-s.camera).normalized();
-  const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
-  const Eigen::Vector3f down = forward.cross(right);
-  camera_from_table.linear().row(0) = right;
-  camera_from_table.linear().row(1) = down;
-  camera_from_table.linear().row(2) = forward;
-  camera_from_table.translation() = -(camera_from_table.linear() * s.camera);
+  const Eigen::Isometry3f camera_from_table = synthetic::cameraFromTable(s);
   synthetic::transformCloud(camera_from_table, scene);
   if (disparity_steps) toDisparitySteps(scene);
   const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());

@@ -17,4 +17,13 @@ namespace tabletop_shapes {
 std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, const Plane& table,
                                               const Eigen::Vector3f& viewpoint);
 
+// The clusters with the two visible parts of one object hidden in the middle by another joined
+// (a box behind a box, a can lying behind one), largest first. Two clusters are joined when
+// their tops lie at the same height and every line of sight to the gap between them (sampled
+// along the shortest segment from one to the other) meets a third cluster nearer the camera:
+// the gap is explained by that occluder. Two objects standing apart show the table or the
+// background through the gap between them.
+std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters, const Plane& table,
+                                                 const Eigen::Vector3f& viewpoint);
+
 }  // namespace tabletop_shapes

@@ -5,6 +5,8 @@
 #include "tabletop_shapes/core/pipeline.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
+#include <functional>
+
 namespace tabletop_shapes {
 namespace sim {
 
@@ -74,6 +76,36 @@ struct LabelledScore {
 LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
                                  const SceneResult& result, int min_object_points = 500,
                                  float table_distance = 0.015f, float cluster_distance = 0.01f);
+
+// ---- labelled real scenes scored by object: found, pieces, junk, type ----
+// The table frame of a labelled scene: the plane fitted (OLS) to the points labelled table,
+// its normal towards the camera; false when fewer than 3 table points.
+bool labelledTablePlane(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud, Plane& plane);
+
+// What a labelled object (or part) is, for the type score: Unknown when not known.
+// Round: a cylinder or a cone is right.
+enum class ExpectedShape { Unknown, Box, Round };
+
+// Counts over the objects of one or more scenes. An object is found when a detection's centre
+// lies in the box of its labelled points (in the table frame: height along the normal, the
+// in-plane axes from the camera's x axis) grown by `grow` on every side; each detection finds
+// at most one object, each object is found by at most one detection (closest to its labelled
+// centroid first). A detection that finds nothing is a piece when its centre lies in some
+// object's grown box, else junk.
+struct ObjectCounts {
+  int objects = 0, found = 0, pieces = 0, junk = 0;
+  int typed = 0, type_right = 0;  // found objects whose expected shape is known; of those right
+  ObjectCounts& operator+=(const ObjectCounts& o);
+};
+struct LabelledObjectScore {
+  ObjectCounts whole;  // objects = label decades (label / 10)
+  ObjectCounts parts;  // each label its own segment (disjoint visible parts of one object)
+};
+// `expected(decade)` gives the expected shape of object `decade` (label / 10).
+LabelledObjectScore scoreLabelledObjects(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
+                                         const std::vector<ShapeFit>& detections,
+                                         const std::function<ExpectedShape(int)>& expected,
+                                         float grow = 0.03f);
 
 }  // namespace sim
 }  // namespace tabletop_shapes

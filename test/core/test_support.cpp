@@ -1,0 +1,125 @@
+// Objects lying on others (beyond the paper): known answers for the plane each one rests on and
+// the solid fitted on it. A box lying across two boxes comes apart into three, and the upper one
+// gets its height from its own bottom face, not from the table under the pile.
+#include "tabletop_shapes/core/support.h"
+
+#include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/core/shape_estimator.h"
+#include "synthetic.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+namespace tabletop_shapes {
+namespace {
+
+// Lifts a table-frame object by `dz` (lying on something of that height).
+CloudPtr lifted(const CloudPtr& cloud, float dz) {
+  auto out = std::make_shared<Cloud>(*cloud);
+  for (auto& p : out->points) p.z += dz;
+  return out;
+}
+
+// Drops the points of `cloud` under an upper object's footprint [x0, x1] x [y0, y1] at height z
+// and above (the top face it hides).
+CloudPtr withoutTopUnder(const CloudPtr& cloud, float x0, float x1, float y0, float y1, float z) {
+  auto out = std::make_shared<Cloud>();
+  for (const auto& p : *cloud) {
+    if (!(p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1 && p.z > z - 0.002f)) out->push_back(p);
+  }
+  return out;
+}
+
+float height(const Plane& table, const Eigen::Vector3f& p) { return table.signedDistance(p); }
+
+TEST(Support, BoxAcrossTwoBoxesSplitsIntoThreeEachOnItsOwnBottom) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  // Two 10 x 10 x 8 cm boxes 6 cm apart; a 30 x 8 x 4 cm box lies across both.
+  const float lower_height = 0.08f;
+  const Eigen::Vector3f bridge_size(0.30f, 0.08f, 0.04f);
+  const CloudPtr left =
+      withoutTopUnder(synthetic::box({0.10f, 0.10f, lower_height}, {-0.08f, 0.0f}, 0.0f, s), -0.15f,
+                      0.15f, -0.04f, 0.04f, lower_height);
+  const CloudPtr right =
+      withoutTopUnder(synthetic::box({0.10f, 0.10f, lower_height}, {0.08f, 0.0f}, 0.0f, s), -0.15f,
+                      0.15f, -0.04f, 0.04f, lower_height);
+  const CloudPtr bridge = lifted(synthetic::box(bridge_size, {0.0f, 0.0f}, 0.0f, s), lower_height);
+  auto scene = std::make_shared<Cloud>(*left);
+  *scene += *right;
+  *scene += *bridge;
+
+  const Eigen::Isometry3f camera_from_table = synthetic::cameraFromTable(s);
+  synthetic::transformCloud(camera_from_table, *scene);
+  scene->width = static_cast<uint32_t>(scene->size());
+  scene->height = 1;
+  const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
+
+  std::vector<CloudPtr> clusters = extractClusters(scene, ClusteringParams(), &table);
+  ASSERT_EQ(clusters.size(), 3u);
+  const std::vector<Plane> supports = supportPlanes(clusters, table);
+  ASSERT_EQ(supports.size(), 3u);
+
+  // The bridge is the cluster with the highest centroid.
+  auto centroidHeight = [&](const CloudPtr& c) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (const auto& p : *c) sum += p.getVector3fMap();
+    return height(table, sum / static_cast<float>(c->size()));
+  };
+  size_t upper = 0;
+  for (size_t c = 1; c < clusters.size(); ++c) {
+    if (centroidHeight(clusters[c]) > centroidHeight(clusters[upper])) upper = c;
+  }
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    const float lift = table.d - supports[c].d;  // same normal: the planes differ in d only
+    EXPECT_NEAR(supports[c].normal.dot(table.normal), 1.0f, 1e-6f);
+    EXPECT_NEAR(lift, c == upper ? lower_height : 0.0f, 0.005f) << "cluster " << c;
+  }
+
+  const ShapeEstimator estimator;
+  const ShapeFit fit = estimator.estimate(clusters[upper], supports[upper]);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  EXPECT_EQ(fit.type, ShapeType::Cube);
+  Eigen::Vector3f dims = fit.dimensions;
+  std::sort(dims.data(), dims.data() + 3);
+  EXPECT_NEAR(dims[0], bridge_size.z(), 0.005f);  // height from its own bottom: 4 cm, not 12
+  EXPECT_NEAR(dims[1], bridge_size.y(), 0.01f);
+  EXPECT_NEAR(dims[2], bridge_size.x(), 0.01f);
+  EXPECT_NEAR(height(table, fit.center), lower_height + bridge_size.z() / 2, 0.005f);
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    if (c == upper) continue;
+    const ShapeFit lower = estimator.estimate(clusters[c], supports[c]);
+    ASSERT_TRUE(lower.ok) << lower.reason;
+    EXPECT_NEAR(height(table, lower.center), lower_height / 2, 0.005f);
+  }
+}
+
+// A box whose lower part is hidden behind a box in front, 2 cm behind it, has nothing under it:
+// it keeps the table. Its visible bottom (over the front box's top edge, seen from the sampler's
+// camera at y = -0.8, z = 0.6) lies 1 cm below the front box's top, as a box lying on it would,
+// so only the footprints tell them apart: the hidden box's points lie behind the front one's.
+TEST(Support, BoxHiddenBehindAnotherKeepsTheTable) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const CloudPtr front = synthetic::box({0.15f, 0.05f, 0.18f}, {0.0f, -0.05f}, 0.0f, s);
+  const CloudPtr back = synthetic::box({0.12f, 0.06f, 0.25f}, {0.0f, 0.025f}, 0.0f, s);
+  auto visible_back = std::make_shared<Cloud>();
+  for (const auto& p : *back) {
+    // Above the line of sight over the front box's top back edge (y = -0.025, z = 0.18).
+    const float sight = 0.18f - (p.y + 0.025f) * (0.6f - 0.18f) / (0.8f - 0.025f);
+    if (p.z > sight) visible_back->push_back(p);
+  }
+  const std::vector<Plane> supports = supportPlanes({front, visible_back}, synthetic::tablePlane());
+  ASSERT_EQ(supports.size(), 2u);
+  EXPECT_FLOAT_EQ(supports[0].d, 0.0f);
+  EXPECT_FLOAT_EQ(supports[1].d, 0.0f);
+  // The same box lying on the front one (its bottom at the front box's top, over its footprint)
+  // rests on it.
+  const CloudPtr lying =
+      lifted(synthetic::box({0.12f, 0.05f, 0.04f}, {0.0f, -0.05f}, 0.0f, s), 0.18f);
+  const std::vector<Plane> stacked = supportPlanes({front, lying}, synthetic::tablePlane());
+  EXPECT_FLOAT_EQ(stacked[0].d, 0.0f);
+  EXPECT_NEAR(-stacked[1].d, 0.18f, 0.003f);
+}
+
+}  // namespace
+}  // namespace tabletop_shapes
