@@ -37,6 +37,8 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
   const auto start = Clock::now();
 
   auto stage = Clock::now();
+  result.view = viewBoundsOf(cloud);
+  result.view.point_spacing = params_.preprocess.leaf_size;
   preprocessor_.apply(cloud, *filtered_);
   result.times.preprocess_ms = msSince(stage);
 
@@ -59,7 +61,7 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     stage = Clock::now();
     result.objects.reserve(result.clusters.size());
     for (const CloudPtr& cluster : result.clusters) {
-      result.objects.push_back(estimator_.estimate(cluster, result.table.plane));
+      result.objects.push_back(estimator_.estimate(cluster, result.table.plane, &result.view));
     }
     result.times.shapes_ms = msSince(stage);
   }
