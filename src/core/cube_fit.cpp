@@ -135,16 +135,9 @@ float quantile(std::vector<float>& values, float fraction) {
   return values[index];
 }
 
-// Direction (unit, in the plane spanned by e1, e2) of the minimum-area rectangle enclosing the
-// points' projections: rotating calipers over the 2-D convex hull.
-Eigen::Vector3f minimumAreaRectangleAxis(const NormalCloud& cloud, const std::vector<int>& indices,
-                                         const Eigen::Vector3f& e1, const Eigen::Vector3f& e2) {
-  std::vector<Eigen::Vector2f> points;
-  points.reserve(indices.size());
-  for (int i : indices) {
-    const Eigen::Vector3f p = cloud[i].getVector3fMap();
-    points.emplace_back(p.dot(e1), p.dot(e2));
-  }
+// Direction (unit) of the minimum-area rectangle enclosing 2-D points: rotating calipers over
+// their convex hull.
+Eigen::Vector2f minimumAreaRectangleDirection(std::vector<Eigen::Vector2f> points) {
   std::sort(points.begin(), points.end(), [](const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
     return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
   });
@@ -184,13 +177,52 @@ Eigen::Vector3f minimumAreaRectangleAxis(const NormalCloud& cloud, const std::ve
       best_direction = u;
     }
   }
-  return (best_direction.x() * e1 + best_direction.y() * e2).normalized();
+  return best_direction;
+}
+
+// The same for the points `indices` of `cloud` projected on the plane spanned by e1, e2; the
+// direction in 3-D.
+template <typename CloudT>
+Eigen::Vector3f minimumAreaRectangleAxis(const CloudT& cloud, const std::vector<int>& indices,
+                                         const Eigen::Vector3f& e1, const Eigen::Vector3f& e2) {
+  std::vector<Eigen::Vector2f> points;
+  points.reserve(indices.size());
+  for (int i : indices) {
+    const Eigen::Vector3f p = cloud[i].getVector3fMap();
+    points.emplace_back(p.dot(e1), p.dot(e2));
+  }
+  const Eigen::Vector2f direction = minimumAreaRectangleDirection(std::move(points));
+  return (direction.x() * e1 + direction.y() * e2).normalized();
 }
 
 ShapeFit failure(ShapeFit fit, const std::string& reason) {
   fit.ok = false;
   fit.reason = reason;
   return fit;
+}
+
+// Orientation and dimensions of a box with edges `dimensions` along the columns of `axes` (z =
+// up), made canonical: x along the longer horizontal edge (right-handed, z stays up).
+void setBoxPose(Eigen::Matrix3f axes, Eigen::Vector3f dimensions, ShapeFit& fit) {
+  if (dimensions.y() > dimensions.x()) {
+    const Eigen::Vector3f x_axis = axes.col(0);
+    axes.col(0) = axes.col(1);
+    axes.col(1) = -x_axis;
+    std::swap(dimensions.x(), dimensions.y());
+  }
+  fit.orientation = Eigen::Quaternionf(axes).normalized();
+  fit.dimensions = dimensions;
+}
+
+// RMS distance of all the points of `cloud` to the surface of the box `fit`.
+template <typename CloudT>
+float rmsDistanceToBox(const ShapeFit& fit, const CloudT& cloud) {
+  double squared_sum = 0.0;
+  for (const auto& p : cloud.points) {
+    const float distance = distanceToBox(fit, p.getVector3fMap());
+    squared_sum += static_cast<double>(distance) * distance;
+  }
+  return cloud.empty() ? 0.0f : static_cast<float>(std::sqrt(squared_sum / cloud.size()));
 }
 
 }  // namespace
@@ -382,22 +414,53 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
                                      0.5f * dimensions.z());
   fit.center = origin + axes * local_center;
 
-  // Canonical: x along the longer horizontal edge (right-handed, z stays up).
-  if (dimensions.y() > dimensions.x()) {
-    axes.col(0) = y_axis;
-    axes.col(1) = -x_axis;
-    std::swap(dimensions.x(), dimensions.y());
-  }
-  fit.orientation = Eigen::Quaternionf(axes).normalized();
-  fit.dimensions = dimensions;
+  setBoxPose(axes, dimensions, fit);
+  fit.rmse = rmsDistanceToBox(fit, object);
+  fit.ok = true;
+  return fit;
+}
 
-  // RMS distance of all the object's points to the box surface.
-  double squared_sum = 0.0;
-  for (const auto& p : object.points) {
-    const float distance = distanceToBox(fit, p.getVector3fMap());
-    squared_sum += static_cast<double>(distance) * distance;
+ShapeFit boundingBox(const Cloud& cluster, const Plane& table) {
+  ShapeFit fit;
+  fit.type = ShapeType::Cube;
+  fit.bounding_box = true;
+  const float table_norm = table.normal.norm();
+  if (!std::isfinite(table_norm) || table_norm < 1e-6f || !std::isfinite(table.d)) {
+    return failure(fit, "invalid table plane");
   }
-  fit.rmse = static_cast<float>(std::sqrt(squared_sum / n));
+  const Eigen::Vector3f up = table.normal / table_norm;
+  const float table_d = table.d / table_norm;
+  const Eigen::Vector3f e1 = up.unitOrthogonal(), e2 = up.cross(e1);
+  std::vector<int> finite;
+  float top = 0.0f;
+  for (int i = 0; i < static_cast<int>(cluster.size()); ++i) {
+    const Eigen::Vector3f p = cluster[i].getVector3fMap();
+    if (!p.allFinite()) continue;
+    finite.push_back(i);
+    top = std::max(top, up.dot(p) + table_d);
+  }
+  fit.points = static_cast<int>(finite.size());
+  if (finite.size() < 3) return failure(fit, "too few points for a bounding box");
+  const Eigen::Vector3f x_axis = minimumAreaRectangleAxis(cluster, finite, e1, e2);
+  const Eigen::Vector3f y_axis = up.cross(x_axis);
+  Eigen::Matrix3f axes;
+  axes << x_axis, y_axis, up;
+  Eigen::Vector2f low = Eigen::Vector2f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector2f high = -low;
+  for (int i : finite) {
+    const Eigen::Vector3f p = cluster[i].getVector3fMap();
+    const Eigen::Vector2f q(p.dot(x_axis), p.dot(y_axis));
+    low = low.cwiseMin(q);
+    high = high.cwiseMax(q);
+  }
+  // The box stands on the table (the points start above table.min_height) and ends at the top
+  // point; no edge thinner than a millimetre, so that it stays a solid.
+  Eigen::Vector3f dimensions(high.x() - low.x(), high.y() - low.y(), top);
+  dimensions = dimensions.cwiseMax(1e-3f);
+  const Eigen::Vector2f middle = 0.5f * (low + high);
+  fit.center = middle.x() * x_axis + middle.y() * y_axis - table_d * up + 0.5f * top * up;
+  setBoxPose(axes, dimensions, fit);
+  fit.rmse = rmsDistanceToBox(fit, cluster);
   fit.ok = true;
   return fit;
 }
@@ -407,6 +470,22 @@ float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point) {
   const Eigen::Vector3f outside = local.cwiseAbs() - 0.5f * box.dimensions;
   if ((outside.array() > 0.0f).any()) return outside.cwiseMax(0.0f).norm();
   return -outside.maxCoeff();
+}
+
+float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point) {
+  const Eigen::Vector3f local = box.orientation.conjugate() * (point - box.center);
+  const Eigen::Vector3f camera = box.orientation.conjugate() * (-box.center);
+  const Eigen::Vector3f half = 0.5f * box.dimensions;
+  float distance = std::numeric_limits<float>::infinity();
+  for (int axis = 0; axis < 3; ++axis) {
+    for (float side : {-1.0f, 1.0f}) {
+      if (side * camera[axis] <= half[axis]) continue;  // the face looks away from the camera
+      Eigen::Vector3f nearest = local.cwiseMax(-half).cwiseMin(half);
+      nearest[axis] = side * half[axis];
+      distance = std::min(distance, (local - nearest).norm());
+    }
+  }
+  return std::isfinite(distance) ? distance : distanceToBox(box, point);
 }
 
 }  // namespace tabletop_shapes

@@ -253,6 +253,24 @@ struct RoundObjectPoints {
   bool top_seen = false;  // height from the top disc (else from the side wall)
 };
 
+// Height of the top from the heights of the points on it: their median, unless a distinct
+// group stands above it (beyond kTrimSigmas robust deviations, at least a twentieth of them),
+// such as a can's rim above its recessed lid; then that group's median, so that the solid
+// reaches the points' own top (can heights came out 4-7 mm short on real frames).
+double topHeight(const std::vector<double>& top_heights) {
+  const double median = quantile(top_heights, 0.5);
+  std::vector<double> deviations;
+  deviations.reserve(top_heights.size());
+  for (double h : top_heights) deviations.push_back(std::abs(h - median));
+  const double sigma = std::max(1.4826 * quantile(deviations, 0.5), kTrimFloor);
+  std::vector<double> above;
+  for (double h : top_heights) {
+    if (h > median + kTrimSigmas * sigma) above.push_back(h);
+  }
+  const size_t needed = std::max<size_t>(kMinTopPoints / 2, top_heights.size() / 20);
+  return above.size() >= needed ? quantile(above, 0.5) : median;
+}
+
 RoundObjectPoints splitObject(const NormalCloud& object, const Plane& table,
                               const CylinderParams& params) {
   RoundObjectPoints out;
@@ -310,7 +328,7 @@ RoundObjectPoints splitObject(const NormalCloud& object, const Plane& table,
     }
   }
   out.top_seen = static_cast<int>(top_heights.size()) >= kMinTopPoints;
-  out.height = out.top_seen ? quantile(top_heights, 0.5) : high;
+  out.height = out.top_seen ? topHeight(top_heights) : high;
   if (!(out.height > 0.0)) {
     out.reason = "object has no height above the table";
     return out;
@@ -463,6 +481,72 @@ ShapeFit coneFromSplit(const RoundObjectPoints& split, const Circle& cylinder_ci
   return fit;
 }
 
+// Distance of q to the segment a-b (2-D or 3-D).
+template <typename Vector>
+double segmentDistance(const Vector& q, const Vector& a, const Vector& b) {
+  const Vector ab = b - a;
+  const double length_squared = ab.squaredNorm();
+  const double t =
+      length_squared > 0.0 ? std::clamp((q - a).dot(ab) / length_squared, 0.0, 1.0) : 0.0;
+  return (q - (a + t * ab)).norm();
+}
+
+// A fitted cylinder or truncated cone in its own frame: z along the axis from the bottom disc
+// (z = 0) to the top (z = height); rims as (radius, height).
+struct RoundSolid {
+  explicit RoundSolid(const ShapeFit& round)
+      : fit(round),
+        height(round.height),
+        bottom_rim(round.type == ShapeType::Cone ? round.radius_bottom : round.radius, 0.0),
+        top_rim(round.type == ShapeType::Cone ? round.radius_top : round.radius, round.height),
+        top_centre(0.0, round.height) {}
+  Vec3d local(const Eigen::Vector3f& point) const {
+    return (fit.orientation.conjugate() * (point - fit.center)).cast<double>() +
+           Vec3d(0.0, 0.0, 0.5 * height);
+  }
+  const ShapeFit& fit;
+  double height;
+  Vec2d bottom_rim, top_rim, top_centre;
+};
+
+// Whether the wall facing the camera shows the cone's taper by itself: there, how far the
+// points stand out towards the camera grows with their height as the radius does (dr/dh = the
+// slope, times cos of the azimuth, > 0.87 in the strip taken). A fitted slope can also come
+// from the centre and the slope trading off between the near wall seen low and a far wall (a
+// bowl's inside) seen high, which turned a bowl's taper upside down; the near wall alone is
+// free of that. No strip of at least kMinSidePoints over a third of the height: no cone.
+bool nearWallShowsTaper(const RoundObjectPoints& split, const ConeSolution& cone) {
+  const Vec2d centre(cone.x[0], cone.x[1]);
+  const Vec2d camera = split.frame.toTable(Vec3d::Zero()).head<2>() - centre;
+  if (camera.norm() < 1e-6) return false;
+  const Vec2d towards = camera.normalized(), across(-towards.y(), towards.x());
+  std::vector<double> heights, outward;
+  for (size_t i = 0; i < split.side_xy.size(); ++i) {
+    const Vec2d offset = split.side_xy[i] - centre;
+    const double radius = cone.x[2] + cone.x[3] * split.side_height[i];
+    if (offset.dot(towards) <= 0.0 || std::abs(offset.dot(across)) > 0.5 * radius) continue;
+    heights.push_back(split.side_height[i]);
+    outward.push_back(offset.dot(towards));
+  }
+  if (heights.size() < kMinSidePoints) return false;
+  const auto [low, high] = std::minmax_element(heights.begin(), heights.end());
+  if (*high - *low < split.height / 3.0) return false;
+  const double n = static_cast<double>(heights.size());
+  double mean_h = 0.0, mean_o = 0.0;
+  for (size_t i = 0; i < heights.size(); ++i) {
+    mean_h += heights[i] / n;
+    mean_o += outward[i] / n;
+  }
+  double covariance = 0.0, variance = 0.0;
+  for (size_t i = 0; i < heights.size(); ++i) {
+    covariance += (heights[i] - mean_h) * (outward[i] - mean_o);
+    variance += (heights[i] - mean_h) * (heights[i] - mean_h);
+  }
+  const double seen_slope = covariance / variance;
+  const double fitted_slope = cone.x[3];
+  return seen_slope * fitted_slope > 0.0 && std::abs(seen_slope) >= 0.5 * std::abs(fitted_slope);
+}
+
 ShapeFit failed(ShapeType type, const std::string& reason) {
   ShapeFit fit;
   fit.type = type;
@@ -511,7 +595,7 @@ ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
   const double slope = solution.x[3];
   const bool slope_significant = std::abs(slope) >= cone.min_slope &&
                                  std::abs(slope) > cone.slope_sigma * solution.slope_stderr;
-  if (slope_significant && cone_fit.ok) return cone_fit;
+  if (slope_significant && cone_fit.ok && nearWallShowsTaper(split, solution)) return cone_fit;
   return cylinder_fit;
 }
 
@@ -519,22 +603,50 @@ float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point)
   // In the plane through the axis and the point, the solid is the trapezoid (0, 0), (r_bottom,
   // 0), (r_top, h), (0, h) in (distance from the axis, height); its surface is every edge but
   // the axis.
-  const bool cone = round.type == ShapeType::Cone;
-  const Vec2d bottom_rim(cone ? round.radius_bottom : round.radius, 0.0);
-  const Vec2d top_rim(cone ? round.radius_top : round.radius, round.height);
-  const Vec3d local = (round.orientation.conjugate() * (point - round.center)).cast<double>();
-  const Vec2d q(local.head<2>().norm(), local.z() + 0.5 * round.height);
-  auto toSegment = [&q](const Vec2d& a, const Vec2d& b) {
-    const Vec2d ab = b - a;
-    const double length_squared = ab.squaredNorm();
-    const double t =
-        length_squared > 0.0 ? std::clamp((q - a).dot(ab) / length_squared, 0.0, 1.0) : 0.0;
-    return (q - (a + t * ab)).norm();
-  };
-  const double distance =
-      std::min({toSegment(Vec2d::Zero(), bottom_rim), toSegment(bottom_rim, top_rim),
-                toSegment(top_rim, Vec2d(0.0, round.height))});
-  return static_cast<float>(distance);
+  const RoundSolid solid(round);
+  const Vec3d q = solid.local(point);
+  const Vec2d radial(q.head<2>().norm(), q.z());
+  return static_cast<float>(
+      std::min({segmentDistance(radial, Vec2d(Vec2d::Zero()), solid.bottom_rim),
+                segmentDistance(radial, solid.bottom_rim, solid.top_rim),
+                segmentDistance(radial, solid.top_rim, solid.top_centre)}));
+}
+
+float distanceToVisibleRoundSurface(const ShapeFit& round, const Eigen::Vector3f& point) {
+  const RoundSolid solid(round);
+  const Vec3d q = solid.local(point);
+  const Vec3d camera = solid.local(Eigen::Vector3f::Zero());
+  const Vec2d radial(q.head<2>().norm(), q.z());
+  double distance = std::numeric_limits<double>::infinity();
+  if (camera.z() > solid.height) {  // the top disc faces the camera
+    distance = segmentDistance(radial, solid.top_rim, solid.top_centre);
+  }
+  // A generatrix at azimuth phi faces the camera where cos(phi - phi_camera) > (r(z) + slope
+  // (z_camera - z)) / rho_camera (outward normal ~ (cos phi, sin phi, -slope)); taken half-way
+  // up, which is exact for a cylinder.
+  const double rho_camera = camera.head<2>().norm();
+  const double slope = (solid.top_rim.x() - solid.bottom_rim.x()) / solid.height;
+  const double bound = rho_camera > 0.0 ? (0.5 * (solid.bottom_rim.x() + solid.top_rim.x()) +
+                                           slope * (camera.z() - 0.5 * solid.height)) /
+                                              rho_camera
+                                        : 2.0;
+  if (bound < 1.0) {
+    const double half_angle = std::acos(std::max(bound, -1.0));
+    const double camera_azimuth = std::atan2(camera.y(), camera.x());
+    const double offset = std::remainder(std::atan2(q.y(), q.x()) - camera_azimuth, 2.0 * kPi);
+    if (std::abs(offset) <= half_angle) {
+      distance = std::min(distance, segmentDistance(radial, solid.bottom_rim, solid.top_rim));
+    } else {
+      // Nearest visible wall: the silhouette generatrix on the point's side.
+      const double azimuth = camera_azimuth + std::copysign(half_angle, offset);
+      const Vec3d direction(std::cos(azimuth), std::sin(azimuth), 0.0);
+      const Vec3d bottom = solid.bottom_rim.x() * direction;
+      const Vec3d top = solid.top_rim.x() * direction + Vec3d(0.0, 0.0, solid.height);
+      distance = std::min(distance, segmentDistance(q, bottom, top));
+    }
+  }
+  return std::isfinite(distance) ? static_cast<float>(distance)
+                                 : distanceToRoundObject(round, point);
 }
 
 }  // namespace tabletop_shapes

@@ -107,6 +107,9 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "|dr/dh| below this is a cylinder, not a truncated cone");
   real("cone", "slope_sigma", shapes.cone.slope_sigma, 0.0, 100.0,
        "the slope must exceed this many standard errors to call a cone");
+  real("shapes", "max_overreach", shapes.max_overreach, 0.0, 0.1,
+       "a fitted solid may reach this far beyond its points (top, footprint, round diameter "
+       "across the line of sight) or it is rejected [m]");
 }
 
 bool setParameter(PipelineParams& params, const std::string& stage, const std::string& name,

@@ -39,6 +39,8 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
   const auto start = Clock::now();
 
   auto stage = Clock::now();
+  result.view = viewBoundsOf(cloud);
+  result.view.point_spacing = params_.preprocess.leaf_size;
   preprocessor_.apply(cloud, *filtered_);
   result.times.preprocess_ms = msSince(stage);
 
@@ -65,7 +67,7 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     result.objects.reserve(result.clusters.size());
     const std::vector<Plane> supports = supportPlanes(result.clusters, result.table.plane);
     for (size_t c = 0; c < result.clusters.size(); ++c) {
-      result.objects.push_back(estimator_.estimate(result.clusters[c], supports[c]));
+      result.objects.push_back(estimator_.estimate(result.clusters[c], supports[c], &result.view));
     }
     result.times.shapes_ms = msSince(stage);
   }

@@ -1,6 +1,5 @@
 #include "tabletop_shapes/core/shape_estimator.h"
 
-#include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/cube_fit.h"
 #include "tabletop_shapes/core/cylinder_fit.h"
 #include "tabletop_shapes/core/normals.h"
@@ -8,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
+#include <limits>
 #include <sstream>
 
 namespace tabletop_shapes {
@@ -24,6 +25,15 @@ ShapeFit unknown(const Cloud& cluster, const std::string& reason) {
   return fit;
 }
 
+// No model is left: the cluster's bounding box, a safe solid for a grasp planner, which keeps
+// the reasons; Unknown only when not even that can be built.
+ShapeFit fallback(const Cloud& cluster, const Plane& table, const std::string& reason) {
+  ShapeFit box = boundingBox(cluster, table);
+  if (!box.ok) return unknown(cluster, reason + "; bounding box: " + box.reason);
+  box.reason = reason;
+  return box;
+}
+
 // A round fit rests on the side-wall points only. Resting on a tenth of the cluster or less it
 // describes a sliver: seen on a box at 0.5 m, a cylinder through 11 of its ~900 points fitted
 // to 1.9 mm, better than the box could. Real cylinders and cones use 30-90 % of their points.
@@ -38,60 +48,27 @@ ShapeFit checkSupport(ShapeFit fit, size_t cluster_size) {
   return fit;
 }
 
-// A round solid is never wider than the points it came from (SPEC): seen from any side, a
-// cylinder's or cone's points span its full diameter on the table. A cylinder of radius 23 cm
-// through 115 of 842 points of a box lying behind another (OSD learn27) beat the box on the
-// residual of its few points. Margin for noise and the voxel grid [m].
-constexpr float kWidthMargin = 0.02f;
-
-// The widest extent of the cluster seen from above: the diameter of its footprint's hull.
-float footprintWidth(const Cloud& cluster, const Plane& table) {
-  const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
-  std::vector<Eigen::Vector2f> projected;
-  projected.reserve(cluster.size());
-  for (const auto& p : cluster)
-    projected.emplace_back(u.dot(p.getVector3fMap()), v.dot(p.getVector3fMap()));
-  const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(projected));
-  float widest = 0.0f;
-  for (size_t i = 0; i < hull.size(); ++i) {
-    for (size_t j = i + 1; j < hull.size(); ++j)
-      widest = std::max(widest, (hull[i] - hull[j]).norm());
-  }
-  return widest;
-}
-
-ShapeFit checkWidth(ShapeFit fit, float width) {
-  if (!fit.ok || fit.type == ShapeType::Cube) return fit;
-  const float radius =
-      fit.type == ShapeType::Cone ? std::max(fit.radius_bottom, fit.radius_top) : fit.radius;
-  if (2 * radius > width + kWidthMargin) {
-    fit.ok = false;
-    std::ostringstream reason;
-    reason << "the " << shapeTypeName(fit.type) << " is " << 2 * radius
-           << " m wide, wider than its points (" << width << " m)";
-    fit.reason = reason.str();
-  }
-  return fit;
-}
-
 // Points the model comparison is judged on: the closest 90 % to each model's surface. The rest
 // may be flying pixels along the line of sight behind an edge: on a 5 cm box at 1.1 m, 5 % of
 // the cluster, up to 10 cm off, which dominate any plain RMS.
 constexpr float kComparedFraction = 0.9f;
 
-// How closely the cluster follows the fitted solid, comparable between models: RMS distance of
-// the closest kComparedFraction of all its points to the solid's surface. The fits' own rmse is
-// not comparable: the box's covers all the points, flying pixels included, the round fit's only
-// the side-wall points it kept. Cylinders through the sides of flat boxes at 0.7-1.25 m thus
-// claimed 2.5-8.4 mm against the boxes' 4.9-14 mm, while 90 % of the points lay within
-// 0.3-0.5 mm RMS of the boxes' surfaces and 1.1-14 mm of the cylinders' (corners stick out).
-float surfaceResidual(const ShapeFit& fit, const NormalCloud& cluster) {
+// How well the fitted solid explains the points as the camera saw them, comparable between
+// models: RMS distance of the closest kComparedFraction of the cluster's points to the part of
+// the solid's surface that faces the camera. A point behind that surface means the camera saw
+// through the solid; a point beside it, a solid too small. A plain distance to the surface
+// favours flexible models: points inside a too large cone lie near its hidden back wall too.
+// The fits' own rmse is not comparable either: the box's covers all the points, flying pixels
+// included, the round fit's only the side-wall points it kept (cylinders through the sides of
+// flat boxes at 0.7-1.25 m claimed 2.5-8.4 mm against the boxes' 4.9-14 mm, while 90 % of the
+// points lay within 0.3-0.5 mm RMS of the boxes' surfaces and 1.1-14 mm of the cylinders').
+float visibleSurfaceResidual(const ShapeFit& fit, const NormalCloud& cluster) {
   std::vector<float> squared;
   squared.reserve(cluster.size());
   for (const auto& p : cluster.points) {
     const float distance = fit.type == ShapeType::Cube
-                               ? distanceToBox(fit, p.getVector3fMap())
-                               : distanceToRoundObject(fit, p.getVector3fMap());
+                               ? distanceToVisibleBoxSurface(fit, p.getVector3fMap())
+                               : distanceToVisibleRoundSurface(fit, p.getVector3fMap());
     squared.push_back(distance * distance);
   }
   if (squared.empty()) return 0.0f;
@@ -103,39 +80,205 @@ float surfaceResidual(const ShapeFit& fit, const NormalCloud& cluster) {
   return static_cast<float>(std::sqrt(sum / static_cast<double>(kept)));
 }
 
+// Lowest and highest coordinate of the cluster's points along `direction`.
+Eigen::Vector2f extentAlong(const Cloud& cluster, const Eigen::Vector3f& direction) {
+  Eigen::Vector2f range(std::numeric_limits<float>::max(), -std::numeric_limits<float>::max());
+  for (const auto& p : cluster.points) {
+    const float coordinate = direction.dot(p.getVector3fMap());
+    if (!std::isfinite(coordinate)) continue;
+    range = {std::min(range[0], coordinate), std::max(range[1], coordinate)};
+  }
+  return range;
+}
+
+std::string formatMetres(float value) {
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(3) << value;
+  return text.str();
+}
+
+// Depth cameras lose the returns of surfaces seen at grazing incidence (Kinect-class sensors
+// beyond ~70-80 degrees; preprocess also drops points within flying_pixel_angle_deg of the
+// line of sight), so the points of a round wall end before its silhouette: at sin(70 deg) of
+// its radius across the line of sight. On real OSD scenes, cylinders fitted to cans and bowls
+// 8-20 cm across were 6-14 mm wider than their points.
+const float kSilhouetteFraction = std::sin(70.0f * static_cast<float>(kPi) / 180.0f);
+
+// Empty when the solid stays within `tolerance` of the cluster's points, else why not: its top
+// above their highest point; a box's footprint beyond their extent along its edges; a round
+// solid's diameter (the part in view, kSilhouetteFraction) wider than they are across the line
+// of sight (camera at the origin), or its near side in front of them (its far side is hidden,
+// its bottom the table).
+std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& table,
+                      float tolerance) {
+  const Eigen::Vector3f up = table.normal.normalized();
+  const Eigen::Vector2f heights = extentAlong(cluster, up);
+  const float table_height = -table.d / table.normal.norm();
+  const float solid_top = up.dot(fit.center) - table_height +
+                          0.5f * (fit.type == ShapeType::Cube ? fit.dimensions.z() : fit.height);
+  const float points_top = heights[1] - table_height;
+  const std::string name = shapeTypeName(fit.type);
+  if (solid_top > points_top + tolerance) {
+    return name + " top " + formatMetres(solid_top) + " m above the table, its points reach " +
+           formatMetres(points_top) + " m";
+  }
+  auto beyond = [&](const Eigen::Vector3f& direction, float half_width, const char* what) {
+    const Eigen::Vector2f points = extentAlong(cluster, direction);
+    const float centre = direction.dot(fit.center);
+    if (centre - half_width >= points[0] - tolerance &&
+        centre + half_width <= points[1] + tolerance) {
+      return std::string();
+    }
+    return name + " " + what + " reaches " +
+           formatMetres(
+               std::max(points[0] - (centre - half_width), centre + half_width - points[1])) +
+           " m beyond its points";
+  };
+  if (fit.type == ShapeType::Cube) {
+    for (int axis = 0; axis < 2; ++axis) {
+      const Eigen::Vector3f edge = fit.orientation * Eigen::Vector3f::Unit(axis);
+      std::string why = beyond(edge, 0.5f * fit.dimensions[axis], axis == 0 ? "length" : "width");
+      if (!why.empty()) return why;
+    }
+    return "";
+  }
+  const float radius =
+      fit.type == ShapeType::Cone ? std::max(fit.radius_bottom, fit.radius_top) : fit.radius;
+  // Its points end where the wall turns beyond 70 degrees from the camera.
+  const float seen_radius = radius * kSilhouetteFraction;
+  const Eigen::Vector3f sight = fit.center - up.dot(fit.center) * up;  // horizontal
+  if (sight.norm() < 1e-6f) return "";  // seen from straight above: the top disc bounds it
+  const Eigen::Vector3f forward = sight.normalized(), across = up.cross(forward);
+  const Eigen::Vector2f width = extentAlong(cluster, across);
+  if (2.0f * seen_radius > width[1] - width[0] + tolerance) {
+    return name + " diameter " + formatMetres(2.0f * radius) + " m (" +
+           formatMetres(2.0f * seen_radius) + " m in view), its points are " +
+           formatMetres(width[1] - width[0]) + " m wide across the line of sight";
+  }
+  std::string why = beyond(across, seen_radius, "footprint across the line of sight");
+  if (!why.empty()) return why;
+  const float near_side = forward.dot(fit.center) - radius;
+  const float nearest = extentAlong(cluster, forward)[0];
+  if (near_side < nearest - tolerance) {
+    return name + " near side " + formatMetres(nearest - near_side) + " m in front of its points";
+  }
+  return "";
+}
+
+ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance) {
+  if (!fit.ok) return fit;
+  const std::string why = overreach(fit, cluster, table, tolerance);
+  if (!why.empty()) {
+    fit.ok = false;
+    fit.reason = why + " (max_overreach " + formatMetres(tolerance) + " m)";
+  }
+  return fit;
+}
+
+// The points must follow the solid's visible surface (visibleSurfaceResidual) to within this
+// fraction of the cluster's footprint. A solid much smaller than its points (seen on a real
+// bowl: a box 14 x 13 mm in a cluster 17 cm across, 65 mm RMS off) breaks no overreach rule
+// but explains nothing; right models follow their points to 0.2-1.5 mm on rendered scenes and
+// to 0.5-12 mm on real OSD scenes (a mug with its handle).
+constexpr float kMaxResidualFraction = 0.2f;
+
+ShapeFit rejectUnexplained(ShapeFit fit, const NormalCloud& normals, const Cloud& cluster,
+                           const Plane& table) {
+  if (!fit.ok) return fit;
+  const Eigen::Vector3f up = table.normal.normalized();
+  const Eigen::Vector3f e1 = up.unitOrthogonal(), e2 = up.cross(e1);
+  const Eigen::Vector2f x = extentAlong(cluster, e1), y = extentAlong(cluster, e2);
+  const float footprint = std::max(x[1] - x[0], y[1] - y[0]);
+  const float residual = visibleSurfaceResidual(fit, normals);
+  if (residual > kMaxResidualFraction * footprint) {
+    fit.ok = false;
+    fit.reason = "its points lie " + formatMetres(residual) + " m RMS off the " +
+                 shapeTypeName(fit.type) + "'s visible surface, more than " +
+                 formatMetres(kMaxResidualFraction * footprint) + " m (a fifth of their " +
+                 formatMetres(footprint) + " m footprint)";
+  }
+  return fit;
+}
+
+// Marks a solid whose points reach the image border (within two pixels and half the point
+// spacing, where voxel centroids end): the extents along the cut directions are lower bounds.
+void markTruncation(const Cloud& cluster, const Plane& table, const ViewBounds& view,
+                    ShapeFit& fit) {
+  if (!view.known) return;
+  bool cut[4] = {false, false, false, false};  // left, right, top, bottom of the image
+  for (const auto& p : cluster.points) {
+    if (!(p.z > 0.0f) || !std::isfinite(p.x) || !std::isfinite(p.y)) continue;
+    const float margin = 2.0f * view.pixel_tan + 0.5f * view.point_spacing / p.z;
+    cut[0] |= p.x / p.z < view.min_tan_x + margin;
+    cut[1] |= p.x / p.z > view.max_tan_x - margin;
+    cut[2] |= p.y / p.z < view.min_tan_y + margin;
+    cut[3] |= p.y / p.z > view.max_tan_y - margin;
+  }
+  const Eigen::Vector3f directions[4] = {-Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(),
+                                         -Eigen::Vector3f::UnitY(), Eigen::Vector3f::UnitY()};
+  const Eigen::Vector3f up = table.normal.normalized();
+  // An extent is a lower bound where a cut direction has a component along it (> ~17 deg).
+  constexpr float kAlong = 0.3f;
+  for (int border = 0; border < 4; ++border) {
+    if (!cut[border]) continue;
+    fit.truncated = true;
+    const Eigen::Vector3f& d = directions[border];
+    if (fit.type == ShapeType::Cube) {
+      for (int axis = 0; axis < 3; ++axis) {
+        fit.lower_bound[axis] |=
+            std::abs(d.dot(fit.orientation * Eigen::Vector3f::Unit(axis))) > kAlong;
+      }
+    } else {
+      const bool across = (d - d.dot(up) * up).norm() > kAlong;
+      fit.lower_bound[0] |= across;
+      fit.lower_bound[1] |= across;
+      fit.lower_bound[2] |= std::abs(d.dot(up)) > kAlong;
+    }
+  }
+}
+
 }  // namespace
 
-ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table) const {
+ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table,
+                                  const ViewBounds* view) const {
+  ShapeFit fit = estimateSolid(cluster, table);
+  if (view && cluster) markTruncation(*cluster, table, *view, fit);
+  return fit;
+}
+
+ShapeFit ShapeEstimator::estimateSolid(const CloudConstPtr& cluster, const Plane& table) const {
   if (!cluster || cluster->size() < 10) {
-    return unknown(cluster ? *cluster : Cloud(), "too few points to fit a model");
+    return cluster ? fallback(*cluster, table, "too few points to fit a model")
+                   : unknown(Cloud(), "no cluster");
   }
   NormalCloud normals;
   estimateNormalsMLS(cluster, params_.normals, normals);
-  if (normals.size() < 10) return unknown(*cluster, "too few points with a normal");
+  if (normals.size() < 10) return fallback(*cluster, table, "too few points with a normal");
 
   const Prediction prediction = predictShape(normals, params_.predictor);
-  const float width = footprintWidth(*cluster, table);
   auto fitAs = [&](ShapeType type) {
-    return checkWidth(
-        checkSupport(type == ShapeType::Cube
-                         ? fitCube(normals, table, params_.cube)
-                         : fitRoundObject(normals, table, params_.cylinder, params_.cone),
-                     normals.size()),
-        width);
+    ShapeFit fit = checkSupport(
+        type == ShapeType::Cube ? fitCube(normals, table, params_.cube)
+                                : fitRoundObject(normals, table, params_.cylinder, params_.cone),
+        normals.size());
+    fit = rejectOverreach(fit, *cluster, table, params_.max_overreach);
+    return rejectUnexplained(fit, normals, *cluster, table);
   };
   const ShapeType first =
       prediction.guess == ShapeType::Cube ? ShapeType::Cube : ShapeType::Cylinder;
   const ShapeType second = first == ShapeType::Cube ? ShapeType::Cylinder : ShapeType::Cube;
 
   // Both models are fitted, as no residual of the guess alone tells a wrong guess: on the
-  // rendered benchmark, right models follow their clusters to 0.15-1.5 mm (surfaceResidual),
-  // wrong ones from 0.8 mm, and a cylinder on the sides of a 16.7 x 5.6 x 7.9 cm box at 1.4 m
-  // had its own rmse at 1.3 mm. The model the points follow more closely wins; the guess only
-  // orders the reasons of a failure.
+  // rendered benchmark, right models follow their clusters to 0.15-1.5 mm, wrong ones from
+  // 0.8 mm, and a cylinder on the sides of a 16.7 x 5.6 x 7.9 cm box at 1.4 m had its own rmse
+  // at 1.3 mm. The model that explains the points as seen better wins; the guess only orders
+  // the reasons of a failure.
   const ShapeFit guessed = fitAs(first);
   const ShapeFit other = fitAs(second);
   if (guessed.ok && other.ok) {
-    return surfaceResidual(other, normals) < surfaceResidual(guessed, normals) ? other : guessed;
+    return visibleSurfaceResidual(other, normals) < visibleSurfaceResidual(guessed, normals)
+               ? other
+               : guessed;
   }
   if (guessed.ok) return guessed;
   if (other.ok) return other;
@@ -143,7 +286,7 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
   std::ostringstream reason;
   reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
          << shapeTypeName(second) << ": " << other.reason;
-  return unknown(*cluster, reason.str());
+  return fallback(*cluster, table, reason.str());
 }
 
 }  // namespace tabletop_shapes

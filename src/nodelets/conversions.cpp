@@ -168,8 +168,9 @@ void transformObjects(const Eigen::Isometry3d& target_from_source, const std::st
 }
 
 std::string labelText(const Cube& cube) {
-  return format("cube %.1f x %.1f x %.1f cm", 100 * cube.dimensions.x, 100 * cube.dimensions.y,
-                100 * cube.dimensions.z);
+  return format(
+      cube.bounding_box ? "bounding box %.1f x %.1f x %.1f cm" : "cube %.1f x %.1f x %.1f cm",
+      100 * cube.dimensions.x, 100 * cube.dimensions.y, 100 * cube.dimensions.z);
 }
 std::string labelText(const Cylinder& cylinder) {
   return format("cylinder r %.1f h %.1f cm", 100 * cylinder.radius, 100 * cylinder.height);

@@ -48,7 +48,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
     }
-    const std::vector<std::string> stages{"normals", "predictor", "cube", "cylinder", "cone"};
+    const std::vector<std::string> stages{"normals", "predictor", "cube", "cylinder", "cone", "shapes"};
     bridge::seedCoreDefaults(private_node, stages);
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ShapeEstimationConfig>>(
         reconfigure_mutex_, private_node);

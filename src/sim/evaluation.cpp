@@ -233,7 +233,8 @@ LabelledScore scoreLabelledScene(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud
                                  float table_distance, float cluster_distance) {
   LabelledScore score;
   for (const ShapeFit& fit : result.objects) {
-    score.types.push_back(shapeTypeName(fit.ok ? fit.type : ShapeType::Unknown));
+    score.types.push_back(fit.bounding_box ? "bbox"
+                                           : shapeTypeName(fit.ok ? fit.type : ShapeType::Unknown));
   }
   // All cluster points in one k-d tree, each tagged with its cluster.
   auto cluster_points = std::make_shared<Cloud>();

@@ -127,6 +127,19 @@ pcl::PointCloud<pcl::PointXYZ> loadCloud(const std::string& path, const PcdReadO
   }
 }
 
+// The extents of a truncated object that are lower bounds, as a JSON list of names: a box's
+// "x", "y", "z" (its dimensions), a round solid's "radius", "height".
+std::string lowerBoundNames(const ShapeFit& fit) {
+  const bool cube = fit.type == ShapeType::Cube;
+  const char* names[3] = {cube ? "x" : "radius", cube ? "y" : nullptr, cube ? "z" : "height"};
+  std::string list = "[";
+  for (int i = 0; i < 3; ++i) {
+    if (!fit.lower_bound[i] || !names[i]) continue;
+    list += std::string(list.size() > 1 ? ", " : "") + '"' + names[i] + '"';
+  }
+  return list + "]";
+}
+
 std::string toJson(const SceneResult& scene) {
   Json json;
   json.raw("{").key("status").string(scene.table.found ? "ok" : "no table").raw(",\n ");
@@ -169,7 +182,13 @@ std::string toJson(const SceneResult& scene) {
       json.key("height").number(o.height).raw(", ");
     }
     json.key("points").number(o.points).raw(", ").key("rmse").number(o.rmse);
-    if (o.type == ShapeType::Cube) json.raw(", ").key("faces_seen").number(o.faces_seen);
+    if (o.type == ShapeType::Cube) {
+      json.raw(", ").key("faces_seen").number(o.faces_seen);
+      json.raw(", ").key("bounding_box").raw(o.bounding_box ? "true" : "false");
+      if (o.bounding_box) json.raw(", ").key("reason").string(o.reason);
+    }
+    json.raw(", ").key("truncated").raw(o.truncated ? "true" : "false");
+    if (o.truncated) json.raw(", ").key("lower_bounds").raw(lowerBoundNames(o));
     json.raw("}");
   }
   json.raw(scene.objects.empty() ? "],\n " : "\n ],\n ");

@@ -94,18 +94,99 @@ inline CloudPtr roundObject(float r_bottom, float r_top, float height,
   return out;
 }
 
-// The camera frame of a sampler's camera looking at the table frame's origin (x right, y down,
-// z forward, camera at the origin as the core assumes), from the table frame.
-inline Eigen::Isometry3f cameraFromTable(const Sampler& s) {
-  Eigen::Isometry3f camera_from_table = Eigen::Isometry3f::Identity();
-  const Eigen::Vector3f forward = (-s.camera).normalized();
+// A bowl: the truncated cone (r_bottom at z = 0, r_top at z = height; open at the top) with
+// walls `wall` thick. The outer wall where it faces the camera, and the inside (inner wall and
+// floor) where the camera sees it over the rim.
+inline CloudPtr bowl(float r_bottom, float r_top, float height, float wall,
+                     const Eigen::Vector2f& centre, const Sampler& s) {
+  std::mt19937 rng(s.seed);
+  auto out = std::make_shared<Cloud>();
+  const float slope = (r_top - r_bottom) / height;
+  // Inside points are seen when their ray to the camera leaves through the opening.
+  auto throughOpening = [&](const Eigen::Vector3f& p) {
+    if (s.camera.z() <= height) return false;
+    const Eigen::Vector3f q = p + (height - p.z()) / (s.camera.z() - p.z()) * (s.camera - p);
+    return (q.head<2>() - centre).norm() < r_top - wall;
+  };
+  for (float z = 0.0f; z <= height + 1e-6f; z += s.spacing) {
+    for (bool inside : {false, true}) {
+      const float r = r_bottom + slope * z - (inside ? wall : 0.0f);
+      if (inside && z < wall) continue;
+      const int steps = std::max(8, static_cast<int>(2 * kPi * r / s.spacing));
+      for (int i = 0; i < steps; ++i) {
+        const float t = static_cast<float>(2 * kPi * i / steps);
+        const Eigen::Vector3f p(centre.x() + r * std::cos(t), centre.y() + r * std::sin(t), z);
+        Eigen::Vector3f n = Eigen::Vector3f(std::cos(t), std::sin(t), -slope).normalized();
+        if (inside) {
+          if (!throughOpening(p)) continue;
+          n = -n;
+        }
+        addIfVisible(p, n, s, rng, *out);
+      }
+    }
+  }
+  for (float rr = 0.0f; rr <= r_bottom - wall; rr += s.spacing) {  // the floor inside
+    const int steps = std::max(1, static_cast<int>(2 * kPi * rr / s.spacing));
+    for (int i = 0; i < steps; ++i) {
+      const float t = static_cast<float>(2 * kPi * i / steps);
+      const Eigen::Vector3f p(centre.x() + rr * std::cos(t), centre.y() + rr * std::sin(t), wall);
+      if (throughOpening(p)) addIfVisible(p, Eigen::Vector3f::UnitZ(), s, rng, *out);
+    }
+  }
+  out->width = static_cast<uint32_t>(out->size());
+  out->height = 1;
+  return out;
+}
+
+// A cylinder (a can) lying on its side: axis horizontal at `yaw` about z, through (cx, cy, r).
+// Side wall and both end discs.
+inline CloudPtr lyingCylinder(float radius, float length, const Eigen::Vector2f& centre, float yaw,
+                              const Sampler& s) {
+  std::mt19937 rng(s.seed);
+  auto out = std::make_shared<Cloud>();
+  const Eigen::Matrix3f R = Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3f c(centre.x(), centre.y(), radius);
+  const int steps = std::max(8, static_cast<int>(2 * kPi * radius / s.spacing));
+  for (int i = 0; i < steps; ++i) {
+    const float t = static_cast<float>(2 * kPi * i / steps);
+    const Eigen::Vector3f n(0.0f, std::cos(t), std::sin(t));  // axis along local x
+    for (float a = -length / 2; a <= length / 2 + 1e-6f; a += s.spacing) {
+      addIfVisible(c + R * (Eigen::Vector3f(a, 0.0f, 0.0f) + radius * n), R * n, s, rng, *out);
+    }
+  }
+  for (float sign : {-1.0f, 1.0f}) {
+    for (float rr = 0.0f; rr <= radius; rr += s.spacing) {
+      const int ring = std::max(1, static_cast<int>(2 * kPi * rr / s.spacing));
+      for (int i = 0; i < ring; ++i) {
+        const float t = static_cast<float>(2 * kPi * i / ring);
+        const Eigen::Vector3f local(sign * length / 2, rr * std::cos(t), rr * std::sin(t));
+        addIfVisible(c + R * local, R * Eigen::Vector3f(sign, 0.0f, 0.0f), s, rng, *out);
+      }
+    }
+  }
+  out->width = static_cast<uint32_t>(out->size());
+  out->height = 1;
+  return out;
+}
+
+// A camera optical frame (z forward, x right, y down) at `camera` looking at `target`; returns
+// the table -> camera transform, so that the camera sits at the origin as in real clouds.
+inline Eigen::Isometry3f tableToCamera(const Eigen::Vector3f& camera,
+                                       const Eigen::Vector3f& target) {
+  const Eigen::Vector3f forward = (target - camera).normalized();
   const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
   const Eigen::Vector3f down = forward.cross(right);
-  camera_from_table.linear().row(0) = right;
-  camera_from_table.linear().row(1) = down;
-  camera_from_table.linear().row(2) = forward;
-  camera_from_table.translation() = -(camera_from_table.linear() * s.camera);
-  return camera_from_table;
+  Eigen::Matrix3f camera_axes;  // columns: camera x, y, z in the table frame
+  camera_axes << right, down, forward;
+  Eigen::Isometry3f camera_pose = Eigen::Isometry3f::Identity();
+  camera_pose.linear() = camera_axes;
+  camera_pose.translation() = camera;
+  return camera_pose.inverse();
+}
+
+// The camera frame of a sampler's camera looking at the table frame's origin.
+inline Eigen::Isometry3f cameraFromTable(const Sampler& s) {
+  return tableToCamera(s.camera, Eigen::Vector3f::Zero());
 }
 
 // The table plane z = 0 (normal up) in the table frame.

@@ -75,19 +75,7 @@ NormalCloud analyticNormals(const Cloud& cloud, float r_bottom, float r_top, flo
   return out;
 }
 
-// A camera optical frame (z forward, x right, y down) at `camera` looking at `target`; returns
-// the table -> camera transform, so that the camera sits at the origin as in real clouds.
-Eigen::Isometry3f tableToCamera(const Eigen::Vector3f& camera, const Eigen::Vector3f& target) {
-  const Eigen::Vector3f forward = (target - camera).normalized();
-  const Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ()).normalized();
-  const Eigen::Vector3f down = forward.cross(right);
-  Eigen::Matrix3f camera_axes;  // columns: camera x, y, z in the table frame
-  camera_axes << right, down, forward;
-  Eigen::Isometry3f camera_pose = Eigen::Isometry3f::Identity();
-  camera_pose.linear() = camera_axes;
-  camera_pose.translation() = camera;
-  return camera_pose.inverse();
-}
+using synthetic::tableToCamera;
 
 void transformNormalCloud(const Eigen::Isometry3f& T, NormalCloud& cloud) {
   for (auto& p : cloud.points) {
@@ -357,6 +345,37 @@ TEST(ConeFit, NoisyCylindersAreNotCones) {
   }
   std::printf("noisy cylinders called cones: %d/%d, largest fitted |slope| %.4f\n", cones, trials,
               largest_slope);
+}
+
+TEST(ConeFit, BowlTaperOpensUpward) {
+  // A bowl seen over its rim: the outer wall facing the camera and the inside of the far wall.
+  // Points low on the near wall and high on the far wall let a fit trade the centre against
+  // the slope; a real bowl's cone came out upside down that way. Its taper is what its near wall
+  // shows: the radius grows upwards.
+  const float r_bottom = 0.045f, r_top = 0.075f, height = 0.06f;
+  for (float camera_height : {0.4f, 0.6f}) {
+    for (unsigned seed : {1u, 2u}) {
+      Sampler sampler = synthetic::voxelGridSampler();
+      sampler.camera.z() = camera_height;
+      sampler.seed = seed;
+      CloudPtr cloud = synthetic::bowl(r_bottom, r_top, height, 0.004f, kObjectCentre, sampler);
+      const Eigen::Isometry3f to_camera = tableToCamera(
+          sampler.camera, Eigen::Vector3f(kObjectCentre.x(), kObjectCentre.y(), height / 2));
+      synthetic::transformCloud(to_camera, *cloud);
+      const Plane table = synthetic::transformPlane(to_camera, synthetic::tablePlane());
+      NormalCloud object;
+      estimateNormalsMLS(cloud, NormalParams{}, object);
+      const ShapeFit fit = fitRoundObject(object, table, CylinderParams{}, ConeParams{});
+      std::printf("bowl camera %.1f m up, seed %u: %s r %.1f-%.1f mm h %.1f mm\n", camera_height,
+                  seed, shapeTypeName(fit.type), fit.radius_bottom * 1e3, fit.radius_top * 1e3,
+                  fit.height * 1e3);
+      ASSERT_TRUE(fit.ok) << fit.reason;
+      ASSERT_EQ(fit.type, ShapeType::Cone);
+      EXPECT_GT(fit.radius_top, fit.radius_bottom + 0.01f);
+      EXPECT_NEAR(fit.radius_top, r_top, 0.006f);
+      EXPECT_NEAR(fit.height, height, 0.005f);
+    }
+  }
 }
 
 // ---- bad input ----

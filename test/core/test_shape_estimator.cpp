@@ -1,9 +1,13 @@
 #include "tabletop_shapes/core/shape_estimator.h"
 
+#include "tabletop_shapes/core/cube_fit.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <random>
+#include <string>
 
 #include "synthetic.h"
 
@@ -86,6 +90,243 @@ TEST(ShapeEstimator, FlatBoxWithFlyingPixelsAtOneMetreIsABox) {
     }
   }
   std::printf("boxes %d / %zu\n", boxes, 2 * std::size(yaws));
+}
+
+// ---- the rules of issue 12: a solid agrees with its points ----
+
+const float kOverreach = ShapeEstimatorParams().max_overreach;
+
+// A table-frame cloud seen from `camera` (table frame), moved into that camera's optical frame
+// (camera at the origin, looking at `target`), with the table plane there.
+struct CameraView {
+  CloudPtr cloud;
+  Plane table;
+};
+CameraView inOpticalFrame(CloudPtr cloud, const Eigen::Vector3f& camera,
+                          const Eigen::Vector3f& target) {
+  const Eigen::Isometry3f to_camera = synthetic::tableToCamera(camera, target);
+  synthetic::transformCloud(to_camera, *cloud);
+  return {cloud, synthetic::transformPlane(to_camera, synthetic::tablePlane())};
+}
+
+// Lowest and highest coordinate of the cloud along `direction`.
+std::pair<float, float> extent(const Cloud& cloud, const Eigen::Vector3f& direction) {
+  float low = std::numeric_limits<float>::max(), high = -low;
+  for (const auto& p : cloud.points) {
+    low = std::min(low, direction.dot(p.getVector3fMap()));
+    high = std::max(high, direction.dot(p.getVector3fMap()));
+  }
+  return {low, high};
+}
+
+// Independent of the estimator's own check: the solid's top, a box's footprint along its edges,
+// a round solid's diameter across the line of sight stay within `tolerance` of the points.
+void expectWithinPoints(const ShapeFit& fit, const Cloud& cloud, const Plane& table,
+                        float tolerance, const std::string& what) {
+  ASSERT_TRUE(fit.ok) << what << ": " << fit.reason;
+  const Eigen::Vector3f up = table.normal;
+  const float top = extent(cloud, up).second + table.d;
+  const float solid_half_height =
+      0.5f * (fit.type == ShapeType::Cube ? fit.dimensions.z() : fit.height);
+  EXPECT_LE(up.dot(fit.center) + table.d + solid_half_height, top + tolerance) << what;
+  if (fit.type == ShapeType::Cube) {
+    for (int axis = 0; axis < 2; ++axis) {
+      const Eigen::Vector3f edge = fit.orientation * Eigen::Vector3f::Unit(axis);
+      const auto [low, high] = extent(cloud, edge);
+      EXPECT_GE(edge.dot(fit.center) - 0.5f * fit.dimensions[axis], low - tolerance) << what;
+      EXPECT_LE(edge.dot(fit.center) + 0.5f * fit.dimensions[axis], high + tolerance) << what;
+    }
+  } else {
+    const Eigen::Vector3f sight = fit.center - up.dot(fit.center) * up;
+    const Eigen::Vector3f across = up.cross(sight).normalized();
+    const auto [low, high] = extent(cloud, across);
+    const float radius =
+        fit.type == ShapeType::Cone ? std::max(fit.radius_bottom, fit.radius_top) : fit.radius;
+    EXPECT_LE(2.0f * radius, high - low + tolerance) << what;
+  }
+}
+
+void printFit(const char* what, const ShapeFit& fit) {
+  std::printf("%s: %s%s %.3f x %.3f x %.3f r %.3f-%.3f h %.3f%s\n", what,
+              shapeTypeName(fit.ok ? fit.type : ShapeType::Unknown),
+              fit.bounding_box ? " (bounding box)" : "", fit.dimensions.x(), fit.dimensions.y(),
+              fit.dimensions.z(), fit.type == ShapeType::Cone ? fit.radius_bottom : fit.radius,
+              fit.type == ShapeType::Cone ? fit.radius_top : fit.radius, fit.height,
+              fit.truncated ? " truncated" : "");
+}
+
+// One face of a flattened bottle (85 mm wide, 175 mm tall): a shallow arc of radius 0.15 m
+// facing the camera. A circle through it is 0.3 m across, 3.5 times the object; seen on real
+// frames as cones 120-405 mm across. No fitted model is left: its bounding box comes back.
+CloudPtr shallowArcFace(const synthetic::Sampler& sampler) {
+  const float radius = 0.15f, width = 0.085f, height = 0.175f;
+  std::mt19937 rng(sampler.seed);
+  std::normal_distribution<float> noise(0.0f, sampler.noise_sigma);
+  auto cloud = std::make_shared<Cloud>();
+  const float half_angle = std::asin(0.5f * width / radius);
+  // Axis behind the face, on the far side from the camera at (0, -0.8, 0.6).
+  const Eigen::Vector2f axis(0.0f, radius);
+  for (float z = 0.0f; z <= height; z += sampler.spacing) {
+    for (float t = -half_angle; t <= half_angle; t += sampler.spacing / radius) {
+      const Eigen::Vector3f p(axis.x() + radius * std::sin(t), axis.y() - radius * std::cos(t), z);
+      cloud->push_back(Point(p.x() + noise(rng), p.y() + noise(rng), p.z() + noise(rng)));
+    }
+  }
+  cloud->width = static_cast<uint32_t>(cloud->size());
+  cloud->height = 1;
+  return cloud;
+}
+
+TEST(ShapeEstimator, NoSolidIsWiderThanItsPointsAndNoModelLeftGivesTheBoundingBox) {
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  const CameraView view =
+      inOpticalFrame(shallowArcFace(sampler), sampler.camera, Eigen::Vector3f(0, 0, 0.09f));
+  const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table);
+  printFit("shallow arc face", fit);
+  std::printf("  reason: %s\n", fit.reason.c_str());
+  expectWithinPoints(fit, *view.cloud, view.table, kOverreach, "shallow arc face");
+  EXPECT_EQ(fit.type, ShapeType::Cube);
+  EXPECT_TRUE(fit.bounding_box);
+  EXPECT_NE(fit.reason.find("cylinder"), std::string::npos) << fit.reason;
+  EXPECT_NE(fit.reason.find("cube"), std::string::npos) << fit.reason;
+  // The points' own box: 85 mm chord, the 6 mm sagitta (plus noise), 175 mm tall.
+  EXPECT_NEAR(fit.dimensions.x(), 0.085f, 0.005f);
+  EXPECT_NEAR(fit.dimensions.y(), 0.006f, 0.005f);
+  EXPECT_NEAR(fit.dimensions.z(), 0.175f, 0.005f);
+}
+
+TEST(ShapeEstimator, BoundingBoxOfABoxIsTheBox) {
+  const Eigen::Vector3f size(0.175f, 0.12f, 0.10f);
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  sampler.noise_sigma = 0.0f;
+  const CameraView view = inOpticalFrame(synthetic::box(size, {0.0f, 0.0f}, 0.5f, sampler),
+                                         sampler.camera, Eigen::Vector3f(0, 0, 0.05f));
+  const ShapeFit box = boundingBox(*view.cloud, view.table);
+  ASSERT_TRUE(box.ok) << box.reason;
+  EXPECT_TRUE(box.bounding_box);
+  EXPECT_NEAR(box.dimensions.x(), size.x(), 0.002f);
+  EXPECT_NEAR(box.dimensions.y(), size.y(), 0.002f);
+  EXPECT_NEAR(box.dimensions.z(), size.z(), 0.001f);
+  // Its long edge turned by the box's yaw (0.5 rad) in the table plane.
+  const Eigen::Vector3f up = view.table.normal;
+  const Eigen::Isometry3f to_camera =
+      synthetic::tableToCamera(sampler.camera, Eigen::Vector3f(0, 0, 0.05f));
+  const Eigen::Vector3f true_x =
+      to_camera.linear() * Eigen::Vector3f(std::cos(0.5f), std::sin(0.5f), 0);
+  EXPECT_GT(std::abs((box.orientation * Eigen::Vector3f::UnitX()).dot(true_x)), 0.999f);
+  EXPECT_GT((box.orientation * Eigen::Vector3f::UnitZ()).dot(up), 0.9999f);
+}
+
+TEST(ShapeEstimator, LyingCanIsNoUprightSolid) {
+  // A soup can (d 66 mm, 101 mm long) lying on its side. Our round models stand upright, so the
+  // honest answer is a box around it, never an upright cylinder or cone.
+  const float radius = 0.033f, length = 0.101f;
+  for (float yaw : {0.0f, 0.5f, 1.0f}) {
+    synthetic::Sampler sampler = synthetic::voxelGridSampler();
+    const CameraView view =
+        inOpticalFrame(synthetic::lyingCylinder(radius, length, {0.0f, 0.0f}, yaw, sampler),
+                       sampler.camera, Eigen::Vector3f(0, 0, radius));
+    const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table);
+    const std::string what = "lying can yaw " + std::to_string(yaw);
+    printFit(what.c_str(), fit);
+    ASSERT_TRUE(fit.ok) << fit.reason;
+    EXPECT_EQ(fit.type, ShapeType::Cube) << what;
+    expectWithinPoints(fit, *view.cloud, view.table, kOverreach, what);
+    EXPECT_NEAR(fit.dimensions.z(), 2 * radius, 0.006f) << what;
+    EXPECT_NEAR(fit.dimensions.x(), length, 0.01f) << what;  // the length is in view
+  }
+}
+
+TEST(ShapeEstimator, BoxCutByTheImageBorderIsNeverRound) {
+  // The tall narrow box (89 x 38 x 175 mm) cut by the image's right border came out as a
+  // cylinder 452 mm across on a real frame; the paper's teapot box too, at several yaws and
+  // cuts. Camera 1 m away, 37 degrees down, in its optical frame: the border is a bound on x / z.
+  const Eigen::Vector3f boxes[] = {{0.089f, 0.038f, 0.175f}, {0.175f, 0.12f, 0.10f}};
+  int truncated = 0, cases = 0;
+  for (const Eigen::Vector3f& size : boxes) {
+    for (float yaw : {0.0f, 0.6f, 1.2f}) {
+      for (float kept : {0.35f, 0.6f}) {
+        synthetic::Sampler sampler = synthetic::voxelGridSampler();
+        CameraView view = inOpticalFrame(synthetic::box(size, {0.0f, 0.0f}, yaw, sampler),
+                                         sampler.camera, Eigen::Vector3f(0, 0, size.z() / 2));
+        float low = std::numeric_limits<float>::max(), high = -low;
+        for (const auto& p : view.cloud->points) {
+          low = std::min(low, p.x / p.z);
+          high = std::max(high, p.x / p.z);
+        }
+        ViewBounds bounds;
+        bounds.known = true;
+        bounds.pixel_tan = 1.0f / 575.8f;
+        bounds.point_spacing = sampler.spacing;
+        bounds.min_tan_x = -0.55f;
+        bounds.max_tan_x = low + kept * (high - low);
+        bounds.min_tan_y = -0.42f;
+        bounds.max_tan_y = 0.42f;
+        Cloud cut;
+        for (const auto& p : view.cloud->points) {
+          if (p.x / p.z <= bounds.max_tan_x) cut.push_back(p);
+        }
+        const CloudPtr cluster = std::make_shared<Cloud>(cut);
+        const ShapeFit fit = ShapeEstimator().estimate(cluster, view.table, &bounds);
+        char what[96];
+        std::snprintf(what, sizeof what, "box %.3f x %.3f x %.3f yaw %.1f, %.0f %% of it in view",
+                      size.x(), size.y(), size.z(), yaw, 100 * kept);
+        printFit(what, fit);
+        ++cases;
+        ASSERT_TRUE(fit.ok) << what << ": " << fit.reason;
+        EXPECT_EQ(fit.type, ShapeType::Cube) << what;
+        EXPECT_TRUE(fit.truncated) << what;
+        truncated += fit.truncated;
+        expectWithinPoints(fit, *cluster, view.table, kOverreach, what);
+        // The cut runs through the box's footprint: a horizontal edge is a lower bound, the
+        // height is not (the camera's x axis is level).
+        EXPECT_TRUE(fit.lower_bound[0] || fit.lower_bound[1]) << what;
+        EXPECT_FALSE(fit.lower_bound[2]) << what;
+      }
+    }
+  }
+  std::printf("truncated %d / %d\n", truncated, cases);
+}
+
+TEST(ShapeEstimator, WholeObjectsInViewAreNotTruncated) {
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  const CameraView view = inOpticalFrame(synthetic::box(kMilkTea, {0.0f, 0.0f}, 0.3f, sampler),
+                                         sampler.camera, Eigen::Vector3f(0, 0, kMilkTea.z() / 2));
+  ViewBounds bounds;
+  bounds.known = true;
+  bounds.pixel_tan = 1.0f / 575.8f;
+  bounds.point_spacing = sampler.spacing;
+  bounds.min_tan_x = -0.55f;
+  bounds.max_tan_x = 0.55f;
+  bounds.min_tan_y = -0.42f;
+  bounds.max_tan_y = 0.42f;
+  const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table, &bounds);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  EXPECT_FALSE(fit.truncated);
+  EXPECT_FALSE(fit.lower_bound[0] || fit.lower_bound[1] || fit.lower_bound[2]);
+}
+
+TEST(ViewBounds, FromAnOrganisedCloud) {
+  // 640 x 480 pixels, f = 575.8 px, a wall 1 m away; the first 10 columns have no return.
+  const float f = 575.8f, cx = 319.5f, cy = 239.5f;
+  pcl::PointCloud<pcl::PointXYZ> cloud(640, 480);
+  for (int v = 0; v < 480; ++v) {
+    for (int u = 0; u < 640; ++u) {
+      const float nan = std::numeric_limits<float>::quiet_NaN();
+      cloud.at(u, v) =
+          u < 10 ? pcl::PointXYZ(nan, nan, nan) : pcl::PointXYZ((u - cx) / f, (v - cy) / f, 1.0f);
+    }
+  }
+  const ViewBounds view = viewBoundsOf(cloud);
+  ASSERT_TRUE(view.known);
+  EXPECT_NEAR(view.min_tan_x, (10 - cx) / f, 1e-5f);
+  EXPECT_NEAR(view.max_tan_x, (639 - cx) / f, 1e-5f);
+  EXPECT_NEAR(view.min_tan_y, (0 - cy) / f, 1e-5f);
+  EXPECT_NEAR(view.max_tan_y, (479 - cy) / f, 1e-5f);
+  EXPECT_NEAR(view.pixel_tan, 1.0f / f, 1e-6f);
+  pcl::PointCloud<pcl::PointXYZ> unorganised;
+  unorganised.push_back(pcl::PointXYZ(0, 0, 1));
+  EXPECT_FALSE(viewBoundsOf(unorganised).known);
 }
 
 }  // namespace

@@ -73,7 +73,7 @@ TEST(CfgParams, EveryCfgParameterMatchesTheCoreTableAndEveryCoreParameterIsRecon
   checkConfig<tabletop_shapes::TableSegmentationConfig>("TableSegmentation", {"table"}, covered);
   checkConfig<tabletop_shapes::ClusteringConfig>("Clustering", {"clustering"}, covered);
   checkConfig<tabletop_shapes::ShapeEstimationConfig>(
-      "ShapeEstimation", {"normals", "predictor", "cube", "cylinder", "cone"}, covered);
+      "ShapeEstimation", {"normals", "predictor", "cube", "cylinder", "cone", "shapes"}, covered);
   for (const auto& [key, entry] : coreTable()) {
     EXPECT_EQ(covered.count(key), 1u) << key << " must be in exactly one cfg";
   }

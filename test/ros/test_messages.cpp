@@ -77,6 +77,15 @@ tabletop_shapes::Objects makeObjects() {
   cone.rmse = 0.0019;
   msg.cones.push_back(cone);
 
+  // No model fitted this one, and it is cut by the image border along its x edge.
+  tabletop_shapes::Cube bounding_box = cube;
+  bounding_box.faces_seen = 0;
+  bounding_box.bounding_box = true;
+  bounding_box.reason = "no model fits: cube: only one vertical face seen; cylinder: diameter";
+  bounding_box.truncated = true;
+  bounding_box.dimensions_lower_bound = {true, false, false};
+  msg.cubes.push_back(bounding_box);
+
   tabletop_shapes::UnfittedCluster unfitted;
   unfitted.centroid.x = -0.2;
   unfitted.points = 140;
@@ -90,7 +99,11 @@ TEST(Messages, ObjectsRoundTripKeepsEveryField) {
   const tabletop_shapes::Objects out = roundTrip(in);
   // The generated operator== compares every field, nested arrays included.
   EXPECT_TRUE(in == out);
-  ASSERT_EQ(out.cubes.size(), 1u);
+  ASSERT_EQ(out.cubes.size(), 2u);
+  EXPECT_FALSE(out.cubes[0].bounding_box || out.cubes[0].truncated);
+  EXPECT_TRUE(out.cubes[1].bounding_box && out.cubes[1].truncated);
+  EXPECT_EQ(out.cubes[1].reason, in.cubes[1].reason);
+  EXPECT_TRUE(out.cubes[1].dimensions_lower_bound[0] && !out.cubes[1].dimensions_lower_bound[2]);
   EXPECT_DOUBLE_EQ(out.cubes[0].dimensions.y, 0.095);
   EXPECT_EQ(out.cubes[0].faces_seen, 2);
   EXPECT_EQ(out.cubes[0].primitive.type, shape_msgs::SolidPrimitive::BOX);

@@ -11,8 +11,16 @@ namespace tabletop_shapes {
 // when no consistent set of faces is found. center = centre of the solid box.
 ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams& params);
 
+// The minimum-volume upright box around the cluster's points: the minimum-area rectangle of
+// their footprint on the table times the height of the highest point above it. Type Cube,
+// bounding_box == true; ok == false only for fewer than 3 finite points or an invalid table.
+ShapeFit boundingBox(const Cloud& cluster, const Plane& table);
+
 // Distance [m] of `point` to the surface of the fitted box `box` (any face, the bottom one too),
 // from inside or outside alike.
 float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point);
+// Distance [m] of `point` to the faces of that box the camera (at the origin) sees. A point
+// behind them (seen through the box) or beside a box too small is far from them.
+float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point);
 
 }  // namespace tabletop_shapes

@@ -30,5 +30,9 @@ ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
 // Distance [m] of `point` to the surface of the fitted cylinder or truncated cone `round` (side
 // wall, top or bottom disc), from inside or outside alike.
 float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point);
+// Distance [m] of `point` to the part of that surface the camera (at the origin) sees: the
+// side wall facing it and the top disc when the camera is above it. A point behind the
+// visible surface (seen through the solid) or beside a solid too small is far from it.
+float distanceToVisibleRoundSurface(const ShapeFit& round, const Eigen::Vector3f& point);
 
 }  // namespace tabletop_shapes

@@ -27,6 +27,7 @@ struct StageTimes {
 struct SceneResult {
   Eigen::Vector3f up = Eigen::Vector3f::Zero();  // the up direction used
   std::string up_warning;  // check_up: the given up does not fit the scene (why, with angles)
+  ViewBounds view;         // bounds of the input's valid pixels (organised input), for cut objects
   TableResult table;
   std::vector<CloudPtr> clusters;  // the object clusters, largest first
   std::vector<ShapeFit> objects;   // one per cluster, same order; unfitted: Unknown + reason

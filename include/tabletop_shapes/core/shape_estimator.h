@@ -13,6 +13,10 @@ struct ShapeEstimatorParams {
   CubeParams cube;
   CylinderParams cylinder;
   ConeParams cone;
+  // A fitted solid may reach at most this far beyond the cluster's points [m]: along the
+  // table and up for any solid, across the line of sight for the diameter of a round one
+  // (its back is hidden). A model breaking this is rejected with the reason.
+  float max_overreach = 0.005f;
 };
 
 class ShapeEstimator {
@@ -21,11 +25,16 @@ class ShapeEstimator {
   void setParams(const ShapeEstimatorParams& params) { params_ = params; }
   const ShapeEstimatorParams& params() const { return params_; }
 
-  // Never throws: a cluster no model fits comes back as Unknown, ok == false, with the reason
-  // of every model tried; its center is the centroid of the cluster.
-  ShapeFit estimate(const CloudConstPtr& cluster, const Plane& table) const;
+  // Never throws. A cluster no model fits (or whose every model breaks max_overreach) comes
+  // back as its bounding box (Cube, bounding_box == true) with the reason of every model tried;
+  // only a cluster too small for that is Unknown, ok == false, centred on its centroid.
+  // `view` (optional, the frame's ViewBounds) marks objects cut by the image border.
+  ShapeFit estimate(const CloudConstPtr& cluster, const Plane& table,
+                    const ViewBounds* view = nullptr) const;
 
  private:
+  ShapeFit estimateSolid(const CloudConstPtr& cluster, const Plane& table) const;
+
   ShapeEstimatorParams params_;
 };
 

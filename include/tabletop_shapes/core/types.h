@@ -117,6 +117,23 @@ struct ConeParams {
   float slope_sigma = 3.0f;  // slope must exceed this many standard errors
 };
 
+// What the camera saw of a frame: the bounds of its valid pixels' rays. An object whose points
+// reach a bound is cut by the image border, and its extents there are lower bounds. Filled from
+// an organised cloud by viewBoundsOf; unknown for unorganised input.
+struct ViewBounds {
+  bool known = false;
+  // Tangents of the valid pixels' rays, x / z and y / z in the optical frame (x right, y down).
+  float min_tan_x = 0.0f, max_tan_x = 0.0f, min_tan_y = 0.0f, max_tan_y = 0.0f;
+  float pixel_tan = 0.0f;  // one pixel in tangent units (1 / focal length in pixels)
+  // Spacing of the points the clusters hold (the voxel leaf) [m]: a voxel centroid at the
+  // border lies up to half of it inside.
+  float point_spacing = 0.0f;
+};
+// The bounds of an organised cloud's valid (finite, z > 0) points; unknown when the cloud is
+// not organised (height 1) or has no valid point.
+ViewBounds viewBoundsOf(const pcl::PointCloud<pcl::PointXYZ>& cloud);
+ViewBounds viewBoundsOf(const pcl::PointCloud<pcl::PointXYZRGB>& cloud);
+
 // ---- results ----
 
 enum class ShapeType { Cube, Cylinder, Cone, Unknown };
@@ -137,7 +154,16 @@ struct ShapeFit {
   float height = 0.0f;                                   // cylinder / cone [m]
   int points = 0;                                        // points used by the fit
   float rmse = 0.0f;                                     // fit residual RMS [m]
-  int faces_seen = 0;                                    // cube only: 1-3
+  int faces_seen = 0;                                    // cube only: 1-3 (0: bounding box)
+  // Cube only: no model fitted (or each broke a rule), so this is the minimum-volume upright
+  // box around the cluster's points, a safe solid for a grasp planner; `reason` keeps why
+  // every model was rejected.
+  bool bounding_box = false;
+  // The object is cut by the image border: the extents flagged in `lower_bound` continue
+  // beyond what the camera saw. Cube: x, y, z edges; cylinder / cone: [0] = [1] = the radius
+  // (radii), [2] = the height.
+  bool truncated = false;
+  bool lower_bound[3] = {false, false, false};
   Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
 };
 

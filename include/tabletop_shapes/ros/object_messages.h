@@ -28,6 +28,14 @@ inline geometry_msgs::Pose toPoseMsg(const Eigen::Vector3f& position,
   return pose;
 }
 
+// Truncation flags of a cylinder or cone message (ShapeFit::lower_bound: radius, radius, height).
+template <typename RoundMsg>
+void setTruncation(const ShapeFit& fit, RoundMsg& msg) {
+  msg.truncated = fit.truncated;
+  msg.radius_lower_bound = fit.lower_bound[0];
+  msg.height_lower_bound = fit.lower_bound[2];
+}
+
 // Appends `fit` to the list of its type (cubes, cylinders, cones, or unfitted with the reason).
 inline void appendObject(const ShapeFit& fit, const std_msgs::Header& header, Objects& objects) {
   const geometry_msgs::Pose pose = toPoseMsg(fit.center, fit.orientation);
@@ -49,6 +57,10 @@ inline void appendObject(const ShapeFit& fit, const std_msgs::Header& header, Ob
     cube.faces_seen = static_cast<uint8_t>(fit.faces_seen);
     cube.points = static_cast<uint32_t>(fit.points);
     cube.rmse = fit.rmse;
+    cube.bounding_box = fit.bounding_box;
+    if (fit.bounding_box) cube.reason = fit.reason;
+    cube.truncated = fit.truncated;
+    for (int i = 0; i < 3; ++i) cube.dimensions_lower_bound[i] = fit.lower_bound[i];
     cube.primitive.type = shape_msgs::SolidPrimitive::BOX;
     cube.primitive.dimensions = {fit.dimensions.x(), fit.dimensions.y(), fit.dimensions.z()};
     objects.cubes.push_back(cube);
@@ -60,6 +72,7 @@ inline void appendObject(const ShapeFit& fit, const std_msgs::Header& header, Ob
     cylinder.height = fit.height;
     cylinder.points = static_cast<uint32_t>(fit.points);
     cylinder.rmse = fit.rmse;
+    setTruncation(fit, cylinder);
     cylinder.primitive.type = shape_msgs::SolidPrimitive::CYLINDER;
     cylinder.primitive.dimensions = {fit.height, fit.radius};
     objects.cylinders.push_back(cylinder);
@@ -72,6 +85,7 @@ inline void appendObject(const ShapeFit& fit, const std_msgs::Header& header, Ob
     cone.height = fit.height;
     cone.points = static_cast<uint32_t>(fit.points);
     cone.rmse = fit.rmse;
+    setTruncation(fit, cone);
     cone.primitive.type = shape_msgs::SolidPrimitive::CYLINDER;
     cone.primitive.dimensions = {fit.height, 0.5 * (fit.radius_bottom + fit.radius_top)};
     objects.cones.push_back(cone);
