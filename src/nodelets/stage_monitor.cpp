@@ -64,6 +64,8 @@ double releaseMemoryAfterBurst(double& usual_mb) {
   }
   usual_mb = usual_mb > 0.0 ? usual_mb + 0.05 * (rss - usual_mb) : rss;  // follows slowly
   return rss;
+}
+
 // Who publishes `topic` according to the master, and whether the type fits `type`.
 std::string describePublishers(const std::string& topic, const std::string& type) {
   XmlRpc::XmlRpcValue args, result, state;
