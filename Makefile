@@ -12,7 +12,7 @@ JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
               -DCATKIN_ENABLE_TESTING=ON -DCMAKE_INSTALL_PREFIX=$(abspath $(PREFIX))
 
-.PHONY: deps build install test demo benchmark-accuracy format clean
+.PHONY: deps build install test test-sanitize fuzz soak demo benchmark-accuracy format clean
 
 deps:
 	@scripts/install-deps
@@ -51,6 +51,40 @@ install: build
 test: build
 	cmake --build $(BUILD_DIR) --target tests -- -j$(JOBS)
 	cd $(BUILD_DIR) && ctest --output-on-failure
+
+# The core's unit tests and the estimate_shapes command tests, built with gcc's AddressSanitizer
+# and UndefinedBehaviorSanitizer in a build of their own (SANITIZE_DIR): any report fails.
+SANITIZE_DIR ?= .build-sanitize
+SANITIZE_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+SANITIZE_TESTS := $(sort $(basename $(notdir $(wildcard test/core/test_*.cpp)))) test_messages
+export ASAN_OPTIONS ?= detect_leaks=1:abort_on_error=1:strict_string_checks=1
+export UBSAN_OPTIONS ?= print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS ?= suppressions=$(CURDIR)/scripts/lsan-suppressions.txt
+test-sanitize: deps
+	@if [ ! -f $(SANITIZE_DIR)/CMakeCache.txt ]; then cmake -S . -B $(SANITIZE_DIR) $(CMAKE_ARGS) \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$(SANITIZE_FLAGS)" \
+	  -DCMAKE_EXE_LINKER_FLAGS="$(SANITIZE_FLAGS)" -DCMAKE_SHARED_LINKER_FLAGS="$(SANITIZE_FLAGS)" >/dev/null; fi
+	cmake --build $(SANITIZE_DIR) --target estimate_shapes $(SANITIZE_TESTS) -- -j$(JOBS)
+	cd $(SANITIZE_DIR) && ctest --output-on-failure \
+	  -R '_gtest_($(subst $() $(),|,$(SANITIZE_TESTS)))$$|^test_estimate_shapes$$'
+
+# libFuzzer targets (test/fuzz) with Debian's clang, ASan and UBSan, in FUZZ_DIR; each runs
+# FUZZ_SECONDS from the committed seed corpus. clang comes from a list of its own, so that
+# make build / make test do not install it.
+FUZZ_DIR ?= .build-fuzz
+FUZZ_SECONDS ?= 600
+fuzz:
+	@DEPS_LIST=scripts/fuzz-packages.txt scripts/install-deps
+	@if [ ! -f $(FUZZ_DIR)/CMakeCache.txt ]; then cmake -S test/fuzz -B $(FUZZ_DIR) \
+	  -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ >/dev/null; fi
+	cmake --build $(FUZZ_DIR) -- -j$(JOBS)
+	scripts/fuzz $(FUZZ_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+# 30 Hz replay through the whole chain for SOAK_SECONDS (default 10 min): RSS at start and
+# end, frames in / out / dropped per stage, latency p50 / p99 / max.
+SOAK_SECONDS ?= 600
+soak: build
+	@scripts/soak $(SOAK_SECONDS)
 
 # The paper's Tables 2-3 / Fig. 12 on rendered scenes and segmentation scores on real OSD
 # scenes (../shared/data when present, else the copies in test/data); plots in benchmark-output/.

