@@ -26,6 +26,9 @@ constexpr int kMinSupportedPoints = 50;
 // same as on the full cloud, and a VGA frame costs a fraction of the time.
 constexpr size_t kMaxScoringPoints = 20000;
 constexpr double kRansacConfidence = 0.99;
+// Thickness of the slab of inliers taken as the surface itself: the sensor's noise at 1-1.5 m
+// (Kinect v1: sigma 1.6-3.5 mm) on either side [m].
+constexpr float kSurfaceSlab = 0.008f;
 // A higher candidate whose hull is smaller than this fraction of a lower candidate's hull, and
 // that stands inside it and within the object height band, is an object's top (a box), not a
 // support plane.
@@ -150,6 +153,33 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     refined = orient(refined, constraint);
     if (!acceptable(refined, constraint)) break;
     plane = refined;
+  }
+  // The surface itself: the densest kSurfaceSlab of the inliers, refined on the points within
+  // it. Objects standing on the surface add the lowest centimetres of their sides evenly over
+  // the band above it; where they cover most of a table they outnumber the table's own points
+  // there, and the plane with the most inliers lies 1.5 cm above the table (test: a table 70 %
+  // covered by boxes).
+  for (int round = 0; round < 2; ++round) {
+    std::vector<float> distances;
+    distances.reserve(inliers.size());
+    for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
+    std::sort(distances.begin(), distances.end());
+    size_t best_begin = 0, best_end = 0;
+    for (size_t begin = 0, end = 0; begin < distances.size(); ++begin) {
+      while (end < distances.size() && distances[end] <= distances[begin] + kSurfaceSlab) ++end;
+      if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
+    }
+    if (best_end - best_begin < 3) break;
+    Plane shifted = plane;
+    shifted.d -= (distances[best_begin] + distances[best_end - 1]) / 2;
+    std::vector<int> slab;
+    collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
+    Plane refined = shifted;
+    if (!refinePlaneOLS(cloud, slab, refined)) break;
+    refined = orient(refined, constraint);
+    if (!acceptable(refined, constraint)) break;
+    plane = refined;
+    collectInliers(cloud, indices, plane, threshold, inliers);
   }
   collectInliers(cloud, indices, plane, threshold, inliers);
   return true;

@@ -169,6 +169,25 @@ inline CloudPtr lyingCylinder(float radius, float length, const Eigen::Vector2f&
   return out;
 }
 
+// Lifts a table-frame object by `dz` (stacked on something of that height).
+inline CloudPtr lifted(const CloudPtr& cloud, float dz) {
+  auto out = std::make_shared<Cloud>(*cloud);
+  for (auto& p : out->points) p.z += dz;
+  return out;
+}
+
+// Points of `cloud` not covered by a footprint [x0, x1] x [y0, y1] at height z (the lower
+// object's top under a stacked one).
+inline CloudPtr withoutFootprint(const CloudPtr& cloud, float x0, float x1, float y0, float y1,
+                                 float z) {
+  auto out = std::make_shared<Cloud>();
+  for (const auto& p : *cloud) {
+    const bool covered = p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1 && p.z > z - 0.002f;
+    if (!covered) out->push_back(p);
+  }
+  return out;
+}
+
 // A camera optical frame (z forward, x right, y down) at `camera` looking at `target`; returns
 // the table -> camera transform, so that the camera sits at the origin as in real clouds.
 inline Eigen::Isometry3f tableToCamera(const Eigen::Vector3f& camera,

@@ -12,24 +12,6 @@
 namespace tabletop_shapes {
 namespace {
 
-// Lifts a table-frame object by `dz` (stacked on something of that height).
-CloudPtr lifted(const CloudPtr& cloud, float dz) {
-  auto out = std::make_shared<Cloud>(*cloud);
-  for (auto& p : out->points) p.z += dz;
-  return out;
-}
-
-// Points of `cloud` not covered by a footprint [x0, x1] x [y0, y1] at height z (the lower
-// object's top under a stacked one).
-CloudPtr withoutFootprint(const CloudPtr& cloud, float x0, float x1, float y0, float y1, float z) {
-  auto out = std::make_shared<Cloud>();
-  for (const auto& p : *cloud) {
-    const bool covered = p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1 && p.z > z - 0.002f;
-    if (!covered) out->push_back(p);
-  }
-  return out;
-}
-
 // A Kinect v1 depth image's steps: the disparity (focal length x baseline / depth) comes in
 // 1/8 pixel steps, so depths come in steps of 2.9 mm x (depth / 1 m)^2. Camera frame.
 void toDisparitySteps(Cloud& cloud) {
@@ -78,10 +60,11 @@ void expectPartsMatch(const std::vector<CloudPtr>& parts, const std::vector<Clou
 TEST(ClusterSplit, BoxStackedOnABox) {
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
-  const CloudPtr upper = lifted(
+  const CloudPtr upper = synthetic::lifted(
       synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, synthetic::voxelGridSampler()),
       0.06f);
-  const CloudPtr lower_visible = withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
+  const CloudPtr lower_visible =
+      synthetic::withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
   Cloud scene = *lower_visible;
   scene += *upper;
   // Within 3 %: the strips of the lower box's top face around the upper box touch the upper
@@ -93,7 +76,7 @@ TEST(ClusterSplit, BoxStackedOnABox) {
 TEST(ClusterSplit, CylinderStandingOnARoundTin) {
   const CloudPtr tin =
       synthetic::roundObject(0.10f, 0.10f, 0.05f, {0.0f, 0.0f}, synthetic::voxelGridSampler());
-  const CloudPtr can = lifted(
+  const CloudPtr can = synthetic::lifted(
       synthetic::roundObject(0.035f, 0.035f, 0.09f, {0.0f, 0.0f}, synthetic::voxelGridSampler()),
       0.05f);
   auto tin_visible = std::make_shared<Cloud>();
@@ -175,9 +158,9 @@ TEST(ClusterSplit, OpenCupWithHandleStaysWhole) {
 TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
-  auto scene =
-      std::make_shared<Cloud>(*withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f));
-  *scene += *lifted(
+  auto scene = std::make_shared<Cloud>(
+      *synthetic::withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f));
+  *scene += *synthetic::lifted(
       synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, synthetic::voxelGridSampler()),
       0.06f);
   ClusteringParams off;

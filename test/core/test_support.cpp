@@ -14,23 +14,6 @@
 namespace tabletop_shapes {
 namespace {
 
-// Lifts a table-frame object by `dz` (lying on something of that height).
-CloudPtr lifted(const CloudPtr& cloud, float dz) {
-  auto out = std::make_shared<Cloud>(*cloud);
-  for (auto& p : out->points) p.z += dz;
-  return out;
-}
-
-// Drops the points of `cloud` under an upper object's footprint [x0, x1] x [y0, y1] at height z
-// and above (the top face it hides).
-CloudPtr withoutTopUnder(const CloudPtr& cloud, float x0, float x1, float y0, float y1, float z) {
-  auto out = std::make_shared<Cloud>();
-  for (const auto& p : *cloud) {
-    if (!(p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1 && p.z > z - 0.002f)) out->push_back(p);
-  }
-  return out;
-}
-
 float height(const Plane& table, const Eigen::Vector3f& p) { return table.signedDistance(p); }
 
 TEST(Support, BoxAcrossTwoBoxesSplitsIntoThreeEachOnItsOwnBottom) {
@@ -38,13 +21,14 @@ TEST(Support, BoxAcrossTwoBoxesSplitsIntoThreeEachOnItsOwnBottom) {
   // Two 10 x 10 x 8 cm boxes 6 cm apart; a 30 x 8 x 4 cm box lies across both.
   const float lower_height = 0.08f;
   const Eigen::Vector3f bridge_size(0.30f, 0.08f, 0.04f);
-  const CloudPtr left =
-      withoutTopUnder(synthetic::box({0.10f, 0.10f, lower_height}, {-0.08f, 0.0f}, 0.0f, s), -0.15f,
-                      0.15f, -0.04f, 0.04f, lower_height);
-  const CloudPtr right =
-      withoutTopUnder(synthetic::box({0.10f, 0.10f, lower_height}, {0.08f, 0.0f}, 0.0f, s), -0.15f,
-                      0.15f, -0.04f, 0.04f, lower_height);
-  const CloudPtr bridge = lifted(synthetic::box(bridge_size, {0.0f, 0.0f}, 0.0f, s), lower_height);
+  const CloudPtr left = synthetic::withoutFootprint(
+      synthetic::box({0.10f, 0.10f, lower_height}, {-0.08f, 0.0f}, 0.0f, s), -0.15f, 0.15f, -0.04f,
+      0.04f, lower_height);
+  const CloudPtr right = synthetic::withoutFootprint(
+      synthetic::box({0.10f, 0.10f, lower_height}, {0.08f, 0.0f}, 0.0f, s), -0.15f, 0.15f, -0.04f,
+      0.04f, lower_height);
+  const CloudPtr bridge =
+      synthetic::lifted(synthetic::box(bridge_size, {0.0f, 0.0f}, 0.0f, s), lower_height);
   auto scene = std::make_shared<Cloud>(*left);
   *scene += *right;
   *scene += *bridge;
@@ -115,7 +99,7 @@ TEST(Support, BoxHiddenBehindAnotherKeepsTheTable) {
   // The same box lying on the front one (its bottom at the front box's top, over its footprint)
   // rests on it.
   const CloudPtr lying =
-      lifted(synthetic::box({0.12f, 0.05f, 0.04f}, {0.0f, -0.05f}, 0.0f, s), 0.18f);
+      synthetic::lifted(synthetic::box({0.12f, 0.05f, 0.04f}, {0.0f, -0.05f}, 0.0f, s), 0.18f);
   const std::vector<Plane> stacked = supportPlanes({front, lying}, synthetic::tablePlane());
   EXPECT_FLOAT_EQ(stacked[0].d, 0.0f);
   EXPECT_NEAR(-stacked[1].d, 0.18f, 0.003f);
