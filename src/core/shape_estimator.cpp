@@ -109,6 +109,11 @@ const float kSilhouetteFraction = std::sin(70.0f * static_cast<float>(kPi) / 180
 // spacing (where voxel centroids end) of the valid pixels' bounds. Near limit: they reach the
 // frame's nearest valid depth (plus the point spacing); the direction is then towards the
 // camera.
+// Depth cameras' near limits lie within 0.6 m (Kinect v1 / Xtion ~0.45-0.5 m, RealSense D4xx
+// less); a frame whose nearest point is farther is not cut by it. Without this bound the
+// nearest object of every real OSD frame (walls and floor cropped) was flagged as cut.
+constexpr float kFarthestNearLimit = 0.6f;
+
 struct Cuts {
   std::vector<Eigen::Vector3f> directions;
   bool near = false;
@@ -126,7 +131,8 @@ Cuts findCuts(const Cloud& cluster, const ViewBounds* view) {
     border[1] |= p.x / p.z > view->max_tan_x - margin;
     border[2] |= p.y / p.z < view->min_tan_y + margin;
     border[3] |= p.y / p.z > view->max_tan_y - margin;
-    cuts.near |= view->min_depth > 0.0f && p.z < view->min_depth + view->point_spacing;
+    cuts.near |= view->min_depth > 0.0f && view->min_depth < kFarthestNearLimit &&
+                 p.z < view->min_depth + view->point_spacing;
     centroid += p.getVector3fMap();
   }
   const Eigen::Vector3f borders[4] = {-Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(),
