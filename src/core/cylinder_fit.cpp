@@ -509,13 +509,14 @@ struct RoundSolid {
   Vec2d bottom_rim, top_rim, top_centre;
 };
 
-// Whether the wall facing the camera shows the cone's taper by itself: there, how far the
-// points stand out towards the camera grows with their height as the radius does (dr/dh = the
-// slope, times cos of the azimuth, > 0.87 in the strip taken). A fitted slope can also come
-// from the centre and the slope trading off between the near wall seen low and a far wall (a
-// bowl's inside) seen high, which turned a bowl's taper upside down; the near wall alone is
-// free of that. No strip of at least kMinSidePoints over a third of the height: no cone.
-bool nearWallShowsTaper(const RoundObjectPoints& split, const ConeSolution& cone) {
+// Whether the wall facing the camera contradicts the cone's taper: there, how far the points
+// stand out towards the camera grows with their height as the radius does (dr/dh = the slope,
+// times cos of the azimuth, > 0.87 in the strip taken). A fitted slope can also come from the
+// centre and the slope trading off between the near wall seen low and a far wall (a bowl's
+// inside) seen high, which turned a bowl's taper upside down; the near wall alone is free of
+// that. It contradicts when a strip of at least kMinSidePoints over a third of the height
+// tapers the other way.
+bool nearWallContradictsTaper(const RoundObjectPoints& split, const ConeSolution& cone) {
   const Vec2d centre(cone.x[0], cone.x[1]);
   const Vec2d camera = split.frame.toTable(Vec3d::Zero()).head<2>() - centre;
   if (camera.norm() < 1e-6) return false;
@@ -544,7 +545,7 @@ bool nearWallShowsTaper(const RoundObjectPoints& split, const ConeSolution& cone
   }
   const double seen_slope = covariance / variance;
   const double fitted_slope = cone.x[3];
-  return seen_slope * fitted_slope > 0.0 && std::abs(seen_slope) >= 0.5 * std::abs(fitted_slope);
+  return seen_slope * fitted_slope < 0.0;
 }
 
 ShapeFit failed(ShapeType type, const std::string& reason) {
@@ -595,7 +596,8 @@ ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
   const double slope = solution.x[3];
   const bool slope_significant = std::abs(slope) >= cone.min_slope &&
                                  std::abs(slope) > cone.slope_sigma * solution.slope_stderr;
-  if (slope_significant && cone_fit.ok && nearWallShowsTaper(split, solution)) return cone_fit;
+  if (slope_significant && cone_fit.ok && !nearWallContradictsTaper(split, solution))
+    return cone_fit;
   return cylinder_fit;
 }
 

@@ -104,13 +104,58 @@ std::string formatMetres(float value) {
 // 8-20 cm across were 6-14 mm wider than their points.
 const float kSilhouetteFraction = std::sin(70.0f * static_cast<float>(kPi) / 180.0f);
 
+// Where the camera's view cuts the cluster: the directions (optical frame) in which it
+// continues out of view. Image borders: the points reach within two pixels and half the point
+// spacing (where voxel centroids end) of the valid pixels' bounds. Near limit: they reach the
+// frame's nearest valid depth (plus the point spacing); the direction is then towards the
+// camera.
+// Depth cameras' near limits lie within 0.6 m (Kinect v1 / Xtion ~0.45-0.5 m, RealSense D4xx
+// less); a frame whose nearest point is farther is not cut by it. Without this bound the
+// nearest object of every real OSD frame (walls and floor cropped) was flagged as cut.
+constexpr float kFarthestNearLimit = 0.6f;
+
+struct Cuts {
+  std::vector<Eigen::Vector3f> directions;
+  bool near = false;
+};
+
+Cuts findCuts(const Cloud& cluster, const ViewBounds* view) {
+  Cuts cuts;
+  if (!view || !view->known) return cuts;
+  bool border[4] = {false, false, false, false};  // left, right, top, bottom of the image
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : cluster.points) {
+    if (!(p.z > 0.0f) || !std::isfinite(p.x) || !std::isfinite(p.y)) continue;
+    const float margin = 2.0f * view->pixel_tan + 0.5f * view->point_spacing / p.z;
+    border[0] |= p.x / p.z < view->min_tan_x + margin;
+    border[1] |= p.x / p.z > view->max_tan_x - margin;
+    border[2] |= p.y / p.z < view->min_tan_y + margin;
+    border[3] |= p.y / p.z > view->max_tan_y - margin;
+    cuts.near |= view->min_depth > 0.0f && view->min_depth < kFarthestNearLimit &&
+                 p.z < view->min_depth + view->point_spacing;
+    centroid += p.getVector3fMap();
+  }
+  const Eigen::Vector3f borders[4] = {-Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(),
+                                      -Eigen::Vector3f::UnitY(), Eigen::Vector3f::UnitY()};
+  for (int i = 0; i < 4; ++i) {
+    if (border[i]) cuts.directions.push_back(borders[i]);
+  }
+  if (cuts.near && centroid.norm() > 0.0f) cuts.directions.push_back(-centroid.normalized());
+  return cuts;
+}
+
+// A cut direction has a component along a direction beyond this (~17 degrees off square).
+constexpr float kAlong = 0.3f;
+
 // Empty when the solid stays within `tolerance` of the cluster's points, else why not: its top
 // above their highest point; a box's footprint beyond their extent along its edges; a round
 // solid's diameter (the part in view, kSilhouetteFraction) wider than they are across the line
 // of sight (camera at the origin), or its near side in front of them (its far side is hidden,
 // its bottom the table).
+// A cut object's points end at the cut: there the round solid may go on (a cut box's flat face
+// still bounds it on the other side).
 std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& table,
-                      float tolerance) {
+                      float tolerance, const Cuts& cuts) {
   const Eigen::Vector3f up = table.normal.normalized();
   const Eigen::Vector2f heights = extentAlong(cluster, up);
   const float table_height = -table.d / table.normal.norm();
@@ -149,14 +194,27 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
   const Eigen::Vector3f sight = fit.center - up.dot(fit.center) * up;  // horizontal
   if (sight.norm() < 1e-6f) return "";  // seen from straight above: the top disc bounds it
   const Eigen::Vector3f forward = sight.normalized(), across = up.cross(forward);
+  if (cuts.near) return "";           // its near side and its width are cut
+  bool cut_side[2] = {false, false};  // along -across, +across
+  for (const Eigen::Vector3f& d : cuts.directions) {
+    cut_side[0] |= d.dot(across) < -kAlong;
+    cut_side[1] |= d.dot(across) > kAlong;
+  }
   const Eigen::Vector2f width = extentAlong(cluster, across);
-  if (2.0f * seen_radius > width[1] - width[0] + tolerance) {
+  const float centre = across.dot(fit.center);
+  if (!cut_side[0] && centre - seen_radius < width[0] - tolerance) {
+    return name + " footprint across the line of sight reaches " +
+           formatMetres(width[0] - (centre - seen_radius)) + " m beyond its points";
+  }
+  if (!cut_side[1] && centre + seen_radius > width[1] + tolerance) {
+    return name + " footprint across the line of sight reaches " +
+           formatMetres(centre + seen_radius - width[1]) + " m beyond its points";
+  }
+  if (!cut_side[0] && !cut_side[1] && 2.0f * seen_radius > width[1] - width[0] + tolerance) {
     return name + " diameter " + formatMetres(2.0f * radius) + " m (" +
            formatMetres(2.0f * seen_radius) + " m in view), its points are " +
            formatMetres(width[1] - width[0]) + " m wide across the line of sight";
   }
-  std::string why = beyond(across, seen_radius, "footprint across the line of sight");
-  if (!why.empty()) return why;
   const float near_side = forward.dot(fit.center) - radius;
   const float nearest = extentAlong(cluster, forward)[0];
   if (near_side < nearest - tolerance) {
@@ -165,9 +223,10 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
   return "";
 }
 
-ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance) {
+ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance,
+                         const Cuts& cuts) {
   if (!fit.ok) return fit;
-  const std::string why = overreach(fit, cluster, table, tolerance);
+  const std::string why = overreach(fit, cluster, table, tolerance, cuts);
   if (!why.empty()) {
     fit.ok = false;
     fit.reason = why + " (max_overreach " + formatMetres(tolerance) + " m)";
@@ -200,29 +259,11 @@ ShapeFit rejectUnexplained(ShapeFit fit, const NormalCloud& normals, const Cloud
   return fit;
 }
 
-// Marks a solid whose points reach the image border (within two pixels and half the point
-// spacing, where voxel centroids end): the extents along the cut directions are lower bounds.
-void markTruncation(const Cloud& cluster, const Plane& table, const ViewBounds& view,
-                    ShapeFit& fit) {
-  if (!view.known) return;
-  bool cut[4] = {false, false, false, false};  // left, right, top, bottom of the image
-  for (const auto& p : cluster.points) {
-    if (!(p.z > 0.0f) || !std::isfinite(p.x) || !std::isfinite(p.y)) continue;
-    const float margin = 2.0f * view.pixel_tan + 0.5f * view.point_spacing / p.z;
-    cut[0] |= p.x / p.z < view.min_tan_x + margin;
-    cut[1] |= p.x / p.z > view.max_tan_x - margin;
-    cut[2] |= p.y / p.z < view.min_tan_y + margin;
-    cut[3] |= p.y / p.z > view.max_tan_y - margin;
-  }
-  const Eigen::Vector3f directions[4] = {-Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(),
-                                         -Eigen::Vector3f::UnitY(), Eigen::Vector3f::UnitY()};
+// Marks a cut solid truncated: its extents along the cut directions are lower bounds.
+void markTruncation(const Cuts& cuts, const Plane& table, ShapeFit& fit) {
   const Eigen::Vector3f up = table.normal.normalized();
-  // An extent is a lower bound where a cut direction has a component along it (> ~17 deg).
-  constexpr float kAlong = 0.3f;
-  for (int border = 0; border < 4; ++border) {
-    if (!cut[border]) continue;
+  for (const Eigen::Vector3f& d : cuts.directions) {
     fit.truncated = true;
-    const Eigen::Vector3f& d = directions[border];
     if (fit.type == ShapeType::Cube) {
       for (int axis = 0; axis < 3; ++axis) {
         fit.lower_bound[axis] |=
@@ -237,31 +278,20 @@ void markTruncation(const Cloud& cluster, const Plane& table, const ViewBounds& 
   }
 }
 
-}  // namespace
-
-ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table,
-                                  const ViewBounds* view) const {
-  ShapeFit fit = estimateSolid(cluster, table);
-  if (view && cluster) markTruncation(*cluster, table, *view, fit);
-  return fit;
-}
-
-ShapeFit ShapeEstimator::estimateSolid(const CloudConstPtr& cluster, const Plane& table) const {
-  if (!cluster || cluster->size() < 10) {
-    return cluster ? fallback(*cluster, table, "too few points to fit a model")
-                   : unknown(Cloud(), "no cluster");
-  }
+// The solid of a cluster of at least 10 points (ShapeEstimator::estimate).
+ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& cluster,
+                       const Plane& table, const Cuts& cuts) {
   NormalCloud normals;
-  estimateNormalsMLS(cluster, params_.normals, normals);
+  estimateNormalsMLS(cluster, params.normals, normals);
   if (normals.size() < 10) return fallback(*cluster, table, "too few points with a normal");
 
-  const Prediction prediction = predictShape(normals, params_.predictor);
+  const Prediction prediction = predictShape(normals, params.predictor);
   auto fitAs = [&](ShapeType type) {
-    ShapeFit fit = checkSupport(
-        type == ShapeType::Cube ? fitCube(normals, table, params_.cube)
-                                : fitRoundObject(normals, table, params_.cylinder, params_.cone),
-        normals.size());
-    fit = rejectOverreach(fit, *cluster, table, params_.max_overreach);
+    ShapeFit fit = checkSupport(type == ShapeType::Cube
+                                    ? fitCube(normals, table, params.cube)
+                                    : fitRoundObject(normals, table, params.cylinder, params.cone),
+                                normals.size());
+    fit = rejectOverreach(fit, *cluster, table, params.max_overreach, cuts);
     return rejectUnexplained(fit, normals, *cluster, table);
   };
   const ShapeType first =
@@ -287,6 +317,20 @@ ShapeFit ShapeEstimator::estimateSolid(const CloudConstPtr& cluster, const Plane
   reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
          << shapeTypeName(second) << ": " << other.reason;
   return fallback(*cluster, table, reason.str());
+}
+
+}  // namespace
+
+ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& table,
+                                  const ViewBounds* view) const {
+  if (!cluster || cluster->size() < 10) {
+    return cluster ? fallback(*cluster, table, "too few points to fit a model")
+                   : unknown(Cloud(), "no cluster");
+  }
+  const Cuts cuts = findCuts(*cluster, view);
+  ShapeFit fit = estimateSolid(params_, cluster, table, cuts);
+  markTruncation(cuts, table, fit);
+  return fit;
 }
 
 }  // namespace tabletop_shapes

@@ -30,7 +30,7 @@ ViewBounds viewBoundsOfImpl(const pcl::PointCloud<PointT>& cloud) {
   ViewBounds view;
   if (cloud.height < 2 || cloud.width < 2) return view;
   float min_x = std::numeric_limits<float>::max(), max_x = -min_x;
-  float min_y = min_x, max_y = -min_x;
+  float min_y = min_x, max_y = -min_x, min_z = min_x;
   // Pixel size from rows that hold two valid points: tan x grows by 1 / fx per column.
   double pixel_sum = 0.0;
   long pixel_count = 0;
@@ -44,6 +44,7 @@ ViewBounds viewBoundsOfImpl(const pcl::PointCloud<PointT>& cloud) {
       min_x = std::min(min_x, p.x / p.z);
       max_x = std::max(max_x, p.x / p.z);
       min_y = std::min(min_y, p.y / p.z);
+      min_z = std::min(min_z, p.z);
       max_y = std::max(max_y, p.y / p.z);
       if (first < 0) first = static_cast<int>(column);
       last = static_cast<int>(column);
@@ -62,6 +63,7 @@ ViewBounds viewBoundsOfImpl(const pcl::PointCloud<PointT>& cloud) {
   view.min_tan_y = min_y;
   view.max_tan_y = max_y;
   view.pixel_tan = static_cast<float>(pixel_sum / pixel_count);
+  view.min_depth = min_z;
   return view;
 }
 

@@ -33,8 +33,6 @@ class ShapeEstimator {
                     const ViewBounds* view = nullptr) const;
 
  private:
-  ShapeFit estimateSolid(const CloudConstPtr& cluster, const Plane& table) const;
-
   ShapeEstimatorParams params_;
 };
 

@@ -125,6 +125,9 @@ struct ViewBounds {
   // Tangents of the valid pixels' rays, x / z and y / z in the optical frame (x right, y down).
   float min_tan_x = 0.0f, max_tan_x = 0.0f, min_tan_y = 0.0f, max_tan_y = 0.0f;
   float pixel_tan = 0.0f;  // one pixel in tangent units (1 / focal length in pixels)
+  // Nearest valid depth z of the frame [m]; an object reaching it is taken as cut by the
+  // sensor's near limit (0: unknown).
+  float min_depth = 0.0f;
   // Spacing of the points the clusters hold (the voxel leaf) [m]: a voxel centroid at the
   // border lies up to half of it inside.
   float point_spacing = 0.0f;
