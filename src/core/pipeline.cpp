@@ -57,10 +57,7 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     result.times.clustering_ms = msSince(stage);
 
     stage = Clock::now();
-    result.objects.reserve(result.clusters.size());
-    for (const CloudPtr& cluster : result.clusters) {
-      result.objects.push_back(estimator_.estimate(cluster, result.table.plane));
-    }
+    result.objects = estimator_.estimateAll(result.clusters, result.table.plane);
     result.times.shapes_ms = msSince(stage);
   }
   result.times.total_ms = msSince(start);

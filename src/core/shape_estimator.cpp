@@ -3,6 +3,7 @@
 #include "tabletop_shapes/core/cube_fit.h"
 #include "tabletop_shapes/core/cylinder_fit.h"
 #include "tabletop_shapes/core/normals.h"
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/predictor.h"
 
 #include <algorithm>
@@ -104,6 +105,13 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
   reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
          << shapeTypeName(second) << ": " << other.reason;
   return unknown(*cluster, reason.str());
+}
+
+std::vector<ShapeFit> ShapeEstimator::estimateAll(const std::vector<CloudPtr>& clusters,
+                                                  const Plane& table) const {
+  std::vector<ShapeFit> fits(clusters.size());
+  parallelFor(clusters.size(), [&](size_t i) { fits[i] = estimate(clusters[i], table); });
+  return fits;
 }
 
 }  // namespace tabletop_shapes

@@ -88,8 +88,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     objects.table_found = bridge::tableFound(*table);
     if (objects.table_found) {
       const Plane plane = bridge::planeFromMsg(*table);
-      for (const CloudPtr& cluster : splitClusters(*clusters)) {
-        bridge::appendObject(estimator_.estimate(cluster, plane), objects.header, objects);
+      for (const ShapeFit& fit : estimator_.estimateAll(splitClusters(*clusters), plane)) {
+        bridge::appendObject(fit, objects.header, objects);
       }
     }
     if (!output_frame_.empty() && output_frame_ != objects.header.frame_id) {

@@ -24,6 +24,10 @@ class ShapeEstimator {
   // Never throws: a cluster no model fits comes back as Unknown, ok == false, with the reason
   // of every model tried; its center is the centroid of the cluster.
   ShapeFit estimate(const CloudConstPtr& cluster, const Plane& table) const;
+  // estimate() of every cluster, in the same order; the clusters are fitted in parallel, one
+  // per core at a time (largest first when they come largest first).
+  std::vector<ShapeFit> estimateAll(const std::vector<CloudPtr>& clusters,
+                                    const Plane& table) const;
 
  private:
   ShapeEstimatorParams params_;
