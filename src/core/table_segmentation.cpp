@@ -49,7 +49,7 @@ constexpr float kMinImageUpCosine = 0.1f;
 // in by steps this short: twice the preprocessing voxel, so neighbouring surface samples link [m].
 constexpr float kEdgeLinkDistance = 0.01f;
 // GridSearch cell of the outlier removal's k-nearest searches [m].
-constexpr float kOutlierSearchCell = 0.02f;
+constexpr float kOutlierSearchCell = 0.03f;
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
@@ -505,8 +505,9 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
     out = *in;
     return;
   }
-  // Cells about the radius within which the k neighbours of a 5 mm voxel surface lie: the block
-  // of 3 x 3 x 3 cells around a point holds them, gathered once per cell.
+  // The k neighbours of a 5 mm voxel surface lie within ~2 cm: the block of 3 x 3 x 3 cells
+  // around a point holds them, gathered once per cell. 2 cm cells left the k-th neighbour of
+  // edge points outside too often (the slow general search then): 2x PCL's instructions.
   GridSearch<Point> search(kOutlierSearchCell);
   search.setInputCloud(in);
   std::vector<float> distances(in->size(), 0.0f);  // points without neighbours: 0, as PCL
