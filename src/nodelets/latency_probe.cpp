@@ -4,7 +4,7 @@
 // writes one CSV line per message: topic, the message's stamp and the wall time it arrived, both
 // in microseconds. The feeder stamps each cloud with the wall time it publishes it, so arrival
 // minus stamp is the latency from the input to that stage's output.
-// Parameters: ~output (CSV path), ~topics (list of "name:type", type one of xyz, xyzl,
+// Parameters: ~output (CSV path), ~topics (comma-separated "name:type", type one of xyz, xyzl,
 //   table, objects, pc2; names resolved in the nodelet's namespace).
 #include "tabletop_shapes/Objects.h"
 #include "tabletop_shapes/Table.h"
@@ -18,6 +18,7 @@
 #include <cinttypes>
 #include <cstdio>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -41,8 +42,12 @@ class LatencyProbeNodelet : public nodelet::Nodelet {
     }
     std::fprintf(file_, "topic,stamp_us,arrival_us\n");
     std::fflush(file_);
+    // One string: a list on the `nodelet load` command line does not reach the nodelet.
     std::vector<std::string> topics;
-    private_node.getParam("topics", topics);
+    std::stringstream list(private_node.param<std::string>("topics", ""));
+    for (std::string entry; std::getline(list, entry, ',');) {
+      if (!entry.empty()) topics.push_back(entry);
+    }
     for (const std::string& entry : topics) {
       const size_t colon = entry.rfind(':');
       const std::string name = entry.substr(0, colon);
