@@ -12,7 +12,8 @@ JOBS ?= $(shell nproc)
 CMAKE_ARGS ?= -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 \
               -DCATKIN_ENABLE_TESTING=ON -DCMAKE_INSTALL_PREFIX=$(abspath $(PREFIX))
 
-.PHONY: deps build install test test-sanitize fuzz soak demo benchmark-accuracy format clean
+.PHONY: deps build install test test-sanitize fuzz soak demo benchmark-accuracy benchmark-speed \
+        format clean
 
 deps:
 	@scripts/install-deps
@@ -91,6 +92,12 @@ soak: build
 OSD_DIR ?= $(firstword $(wildcard ../shared/data/osd-learn) test/data)
 benchmark-accuracy: build
 	$(BUILD_DIR)/devel/lib/tabletop_shapes/benchmark_accuracy --osd $(OSD_DIR) --out benchmark-output
+
+# Speed: the core alone (per stage, scaling table, plot in benchmark-output/) and the ROS chain
+# in one nodelet manager beside Debian's pcl_ros chain, 300 frames per run (~10 min);
+# QUICK=1: a few frames each, a smoke run.
+benchmark-speed: build
+	scripts/benchmark_speed $(if $(QUICK),--quick) --osd $(OSD_DIR) --out benchmark-output
 
 # The whole chain on a bundled rendered recording of the paper's four objects; prints the
 # objects found beside the true values. RVIZ=1 opens rviz; DEVICE=... uses a live camera.

@@ -3,7 +3,8 @@
 // noisy patch does not become an object.
 #include "tabletop_shapes/core/cluster_split.h"
 
-#include <pcl/search/kdtree.h>
+#include "tabletop_shapes/core/grid_search.h"
+
 #include <pcl/segmentation/lccp_segmentation.h>
 #include <pcl/segmentation/supervoxel_clustering.h>
 
@@ -12,6 +13,8 @@
 
 namespace tabletop_shapes {
 namespace {
+
+constexpr float kVoteSearchCell = 0.01f;  // GridSearch cell of the neighbour votes [m]
 
 // One supervoxel adjacency between two LCCP parts, and whether LCCP found it convex.
 struct Seam {
@@ -79,7 +82,7 @@ ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& pa
 }
 
 // Points of other parts among the k nearest neighbours of `part`'s points, per part.
-std::map<uint32_t, int> neighbourVotes(const Cloud& cluster, pcl::search::KdTree<Point>& tree,
+std::map<uint32_t, int> neighbourVotes(const Cloud& cluster, const pcl::search::Search<Point>& tree,
                                        const std::vector<uint32_t>& labels, uint32_t part) {
   std::map<uint32_t, int> votes;
   std::vector<int> neighbours;
@@ -134,7 +137,7 @@ uint32_t bestNeighbour(const std::map<uint32_t, int>& votes, const std::vector<S
 // bestNeighbour, smallest first: across a concave seam only when they touch nothing else (a
 // handle). A thin strip of a lower box's top face around a box standing on it touches the
 // upper box most, but meets it at the concave seam.
-void mergeSmallParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree, int min_points,
+void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tree, int min_points,
                      ConvexParts& parts) {
   std::vector<uint32_t>& labels = parts.labels;
   for (;;) {
@@ -168,7 +171,7 @@ void mergeSmallParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree, int
 // not by a seam. (Touching objects of equal height therefore stay one cluster.)
 constexpr float kStackStep = 0.02f;  // [m]
 
-void mergeUnseparatedParts(const Cloud& cluster, pcl::search::KdTree<Point>& tree,
+void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point>& tree,
                            const Plane& table, ConvexParts& parts) {
   std::vector<uint32_t>& labels = parts.labels;
   for (bool merged = true; merged;) {
@@ -206,7 +209,8 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     return {cluster};
   }
   ConvexParts convex_parts = convexParts(cluster, params);
-  pcl::search::KdTree<Point> tree(false);
+  // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
+  GridSearch<Point> tree(kVoteSearchCell, false);
   tree.setInputCloud(cluster);
   mergeSmallParts(*cluster, tree, min_points, convex_parts);
   mergeUnseparatedParts(*cluster, tree, table, convex_parts);

@@ -1,10 +1,11 @@
-// §2.5 Euclidean cluster extraction with a k-d tree.
+// §2.5 Euclidean cluster extraction, neighbours from a GridSearch.
 #include "tabletop_shapes/core/clustering.h"
 
 #include "tabletop_shapes/core/cluster_join.h"
 #include "tabletop_shapes/core/cluster_split.h"
+#include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/parallel.h"
 
-#include <pcl/search/kdtree.h>
 #include <pcl/segmentation/extract_clusters.h>
 
 #include <algorithm>
@@ -27,8 +28,9 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
   }
   if (input->empty()) return clusters;
 
-  // Unsorted radius results: the clustering does not need them ordered by distance.
-  auto tree = std::make_shared<pcl::search::KdTree<Point>>(false);
+  // Unsorted radius results: the clustering does not need them ordered by distance. A grid
+  // with cells of the tolerance finds each point's neighbours in 27 cells.
+  auto tree = std::make_shared<GridSearch<Point>>(params.tolerance, false);
   tree->setInputCloud(input);
   std::vector<pcl::PointIndices> cluster_indices;
   pcl::EuclideanClusterExtraction<Point> extraction;
@@ -39,17 +41,17 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
   extraction.setInputCloud(input);
   extraction.extract(cluster_indices);
 
-  for (const auto& indices : cluster_indices) {
-    auto cluster = std::make_shared<Cloud>(*input, indices.indices);
+  // Clusters are split independently: one per core at a time, largest first (PCL's order).
+  std::vector<std::vector<CloudPtr>> parts(cluster_indices.size());
+  parallelFor(cluster_indices.size(), [&](size_t i) {
+    auto cluster = std::make_shared<Cloud>(*input, cluster_indices[i].indices);
     cluster->header = input->header;
     cluster->is_dense = true;
-    if (!table) {
-      clusters.push_back(cluster);
-      continue;
-    }
-    for (const CloudPtr& part : splitAtConcaveSeams(cluster, *table, params)) {
-      clusters.push_back(part);
-    }
+    parts[i] =
+        table ? splitAtConcaveSeams(cluster, *table, params) : std::vector<CloudPtr>{cluster};
+  });
+  for (const std::vector<CloudPtr>& cluster_parts : parts) {
+    clusters.insert(clusters.end(), cluster_parts.begin(), cluster_parts.end());
   }
   if (table) {
     const Eigen::Vector3f viewpoint = cloud->sensor_origin_.head<3>();

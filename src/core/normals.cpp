@@ -1,16 +1,113 @@
 #include "tabletop_shapes/core/normals.h"
 
-#include <pcl/search/kdtree.h>
+#include "tabletop_shapes/core/grid_search.h"
+
+#include <pcl/common/centroid.h>
+#include <pcl/common/eigen.h>
 #include <pcl/surface/mls.h>
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <cmath>
 
 namespace tabletop_shapes {
 namespace {
 
-// MLS smooths the points (projection on the local polynomial) and gives the normal of the
-// local tangent plane; PCL leaves out points with fewer than 3 neighbours.
+constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
+
+// The weighted least-squares polynomial of MLS over the Darboux frame in `result` (PCL's
+// weight exp(-d^2 / r^2)): its normal equations summed neighbour by neighbour, the order fixed
+// at compile time so that the loops over the terms unroll.
+template <int kOrder>
+void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double search_radius,
+                   pcl::MLSResult& result) {
+  constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
+  Eigen::Matrix<double, kTerms, kTerms> normal_matrix =
+      Eigen::Matrix<double, kTerms, kTerms>::Zero();
+  Eigen::Matrix<double, kTerms, 1> right_side = Eigen::Matrix<double, kTerms, 1>::Zero();
+  double terms[kTerms];
+  const double squared_radius = search_radius * search_radius;
+  for (const int neighbour : neighbours) {
+    const Eigen::Vector3d offset(cloud[neighbour].x - result.mean[0],
+                                 cloud[neighbour].y - result.mean[1],
+                                 cloud[neighbour].z - result.mean[2]);
+    const double weight = std::exp(-offset.dot(offset) / squared_radius);
+    const double u = offset.dot(result.u_axis), v = offset.dot(result.v_axis);
+    const double height = offset.dot(result.plane_normal);
+    int j = 0;
+    double u_power = 1;
+    for (int ui = 0; ui <= kOrder; ++ui) {  // PCL's term order: u^i v^j, j fastest
+      double v_power = 1;
+      for (int vi = 0; vi <= kOrder - ui; ++vi) {
+        terms[j++] = u_power * v_power;
+        v_power *= v;
+      }
+      u_power *= u;
+    }
+    for (int a = 0; a < kTerms; ++a) {  // the lower triangle
+      const double weighted = weight * terms[a];
+      for (int b = 0; b <= a; ++b) normal_matrix(a, b) += weighted * terms[b];
+      right_side[a] += weighted * height;
+    }
+  }
+  result.c_vec = normal_matrix.template selfadjointView<Eigen::Lower>().llt().solve(right_side);
+}
+
+// The local surface of point `index` as pcl::MLSResult::computeMLSSurface computes it (the
+// plane of the neighbours' covariance, the query point projected on it, the Darboux frame,
+// then a weighted polynomial fit of the heights over it), but with the fit's normal equations
+// summed point by point in matrices of fixed size: PCL builds a coefficients x neighbours
+// matrix on the heap for every point and multiplies it out with a general matrix product,
+// which took most of the shape stage's instructions. The sums differ from PCL's only in the
+// order of floating-point additions.
+void fitLocalSurface(const Cloud& cloud, int index, const pcl::Indices& neighbours,
+                     double search_radius, int order, pcl::MLSResult& result) {
+  Eigen::Matrix3d covariance;
+  Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
+  pcl::compute3DCentroid(cloud, neighbours, centroid);
+  pcl::computeCovarianceMatrix(cloud, neighbours, centroid, covariance);
+  double eigen_value;
+  Eigen::Vector3d eigen_vector;
+  pcl::eigen33(covariance, eigen_value, eigen_vector);
+  Eigen::Vector4d plane(0, 0, 0, 0);
+  plane.head<3>() = eigen_vector;
+  plane[3] = -1 * plane.dot(centroid);
+  result.query_point = cloud[index].getVector3fMap().cast<double>();
+  if (!eigen_vector.allFinite()) {
+    result.valid = false;
+    result.mean = result.query_point;
+    return;
+  }
+  result.valid = true;
+  const double distance = result.query_point.dot(plane.head<3>()) + plane[3];
+  result.mean = result.query_point - distance * plane.head<3>();
+  result.curvature = covariance.trace();
+  if (result.curvature != 0) result.curvature = std::abs(eigen_value / result.curvature);
+  result.plane_normal = plane.head<3>();
+  result.v_axis = result.plane_normal.unitOrthogonal();
+  result.u_axis = result.plane_normal.cross(result.v_axis);
+  result.num_neighbors = static_cast<int>(neighbours.size());
+  result.order = order;
+  const int coefficients = (order + 1) * (order + 2) / 2;
+  if (order <= 1 || result.num_neighbors < coefficients) return;
+
+  switch (order) {
+    case 2:
+      return fitPolynomial<2>(cloud, neighbours, search_radius, result);
+    case 3:
+      return fitPolynomial<3>(cloud, neighbours, search_radius, result);
+    default:
+      return fitPolynomial<4>(cloud, neighbours, search_radius, result);
+  }
+}
+
+// MLS smooths the points (projection on the local polynomial, PCL's SIMPLE projection) and gives
+// the normal of the local surface; points with fewer than 3 neighbours are left out, as PCL's
+// pcl::MovingLeastSquares does.
 void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
                        NormalCloud& smoothed) {
-  // The k-d tree must not see NaN / inf points (an organised cluster may hold some).
+  // The search must not see NaN / inf points (an organised cluster may hold some).
   CloudConstPtr finite = cluster;
   if (!cluster->is_dense) {
     auto copy = std::make_shared<Cloud>();
@@ -21,13 +118,27 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
     if (copy->empty()) return;
     finite = copy;
   }
-  pcl::MovingLeastSquares<Point, pcl::PointNormal> mls;
-  mls.setInputCloud(finite);
-  mls.setSearchMethod(std::make_shared<pcl::search::KdTree<Point>>());
-  mls.setComputeNormals(true);
-  mls.setPolynomialOrder(std::max(0, params.polynomial_order));
-  mls.setSearchRadius(params.search_radius);
-  mls.process(smoothed);
+  const int order = std::clamp(params.polynomial_order, 0, kMaxOrder);
+  const int coefficients = (order + 1) * (order + 2) / 2;
+  // Sorted neighbours, as PCL's k-d tree gives them: the plane's sums run in that order.
+  GridSearch<Point> search(params.search_radius);
+  search.setInputCloud(finite);
+  pcl::Indices neighbours;
+  std::vector<float> squared_distances;
+  pcl::MLSResult surface;
+  smoothed.reserve(finite->size());
+  for (size_t i = 0; i < finite->size(); ++i) {
+    search.radiusSearch((*finite)[i], params.search_radius, neighbours, squared_distances);
+    if (neighbours.size() < 3) continue;
+    fitLocalSurface(*finite, static_cast<int>(i), neighbours, params.search_radius, order, surface);
+    const pcl::MLSResult::MLSProjectionResults projected =
+        surface.projectQueryPoint(pcl::MLSResult::SIMPLE, coefficients);
+    pcl::PointNormal p;
+    p.getVector3fMap() = projected.point.cast<float>();
+    p.getNormalVector3fMap() = projected.normal.cast<float>();
+    p.curvature = static_cast<float>(surface.curvature);
+    smoothed.push_back(p);
+  }
 }
 
 }  // namespace

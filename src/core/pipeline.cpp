@@ -64,11 +64,8 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     result.times.clustering_ms = msSince(stage);
 
     stage = Clock::now();
-    result.objects.reserve(result.clusters.size());
     const std::vector<Plane> supports = supportPlanes(result.clusters, result.table.plane);
-    for (size_t c = 0; c < result.clusters.size(); ++c) {
-      result.objects.push_back(estimator_.estimate(result.clusters[c], supports[c], &result.view));
-    }
+    result.objects = estimator_.estimateAll(result.clusters, supports, &result.view);
     result.times.shapes_ms = msSince(stage);
   }
   result.times.total_ms = msSince(start);

@@ -1,10 +1,15 @@
 #include "tabletop_shapes/core/predictor.h"
 
-#include <pcl/kdtree/kdtree_flann.h>
+#include "tabletop_shapes/core/grid_search.h"
 
 #include <algorithm>
 
 namespace tabletop_shapes {
+namespace {
+
+constexpr float kNeighbourCell = 0.01f;  // GridSearch cell [m]
+
+}  // namespace
 
 Prediction predictShape(const NormalCloud& object, const PredictorParams& params) {
   Prediction prediction;
@@ -12,7 +17,8 @@ Prediction predictShape(const NormalCloud& object, const PredictorParams& params
   const int n = static_cast<int>(object.size());
   if (n < k + 1) return prediction;  // Unknown: not enough points for eq. 1
 
-  pcl::KdTreeFLANN<pcl::PointNormal> tree;
+  // The k nearest of 5 mm voxel centroids lie within a centimetre for small k.
+  GridSearch<pcl::PointNormal> tree(kNeighbourCell);
   tree.setInputCloud(object.makeShared());
 
   // Eq. 1: d(p0) = sum over the k nearest neighbours of ||n_i - n_0||.

@@ -15,32 +15,16 @@
 // are first met, so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
+#include "tabletop_shapes/core/voxel_key.h"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 namespace tabletop_shapes {
+using voxel_key::floorToInt;
+
 namespace {
-
-constexpr int kAxisBits = 21;                                   // bits per voxel coordinate
-constexpr int64_t kAxisOffset = int64_t{1} << (kAxisBits - 1);  // makes coordinates >= 0
-constexpr uint64_t kEmptyKey = ~uint64_t{0};                    // never a 63-bit key
-
-inline uint64_t hashKey(uint64_t key) {  // splitmix64 finaliser: spreads neighbouring voxels
-  key ^= key >> 31;
-  key *= 0x7fb5d329728ea185ull;
-  key ^= key >> 27;
-  key *= 0x81dadef4bc2dd44dull;
-  key ^= key >> 33;
-  return key;
-}
-
-// floor() without the libm call that std::floor costs on baseline x86-64 (no SSE4.1); |v| must
-// fit an int64.
-inline int64_t floorToInt(float v) {
-  const int64_t i = static_cast<int64_t>(v);
-  return i - (v < static_cast<float>(i));
-}
 
 inline bool finitePoint(float x, float y, float z) {
   return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
@@ -166,41 +150,39 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   const float inv_leaf = 1.0f / params_.leaf_size;
   // Keep the table at most half full: start from the last frame's size, grow when needed.
   size_t capacity = std::max<size_t>(slots_.size(), 1024);
-  slots_.assign(capacity, VoxelSlot{kEmptyKey, 0});
+  slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
   sums_.clear();
   auto grow = [&]() {
     capacity *= 2;
-    slots_.assign(capacity, VoxelSlot{kEmptyKey, 0});
+    slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
     for (uint32_t voxel = 0; voxel < sums_.size(); ++voxel) {
       const uint64_t key = sums_[voxel].key;
-      size_t slot = hashKey(key) & (capacity - 1);
-      while (slots_[slot].key != kEmptyKey) slot = (slot + 1) & (capacity - 1);
+      size_t slot = voxel_key::hash(key) & (capacity - 1);
+      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
       slots_[slot] = {key, voxel};
     }
   };
 
-  uint64_t last_key = kEmptyKey;
+  uint64_t last_key = voxel_key::kEmpty;
   uint32_t last_voxel = 0;
-  const float limit = static_cast<float>(kAxisOffset - 1);
+  const float limit = voxel_key::kLimit;
   for (size_t i = 0; i < in.points.size(); ++i) {
     const PointT& p = in.points[i];
     if (!keep(p, i)) continue;
     const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
     // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
     if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
-    const uint64_t key = (static_cast<uint64_t>(floorToInt(vx) + kAxisOffset) << (2 * kAxisBits)) |
-                         (static_cast<uint64_t>(floorToInt(vy) + kAxisOffset) << kAxisBits) |
-                         static_cast<uint64_t>(floorToInt(vz) + kAxisOffset);
+    const uint64_t key = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
     if (key != last_key) {
-      size_t slot = hashKey(key) & (capacity - 1);
-      while (slots_[slot].key != kEmptyKey && slots_[slot].key != key) {
+      size_t slot = voxel_key::hash(key) & (capacity - 1);
+      while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
         slot = (slot + 1) & (capacity - 1);
       }
-      if (slots_[slot].key == kEmptyKey) {
+      if (slots_[slot].key == voxel_key::kEmpty) {
         if (2 * (sums_.size() + 1) > capacity) {
           grow();
-          slot = hashKey(key) & (capacity - 1);
-          while (slots_[slot].key != kEmptyKey) slot = (slot + 1) & (capacity - 1);
+          slot = voxel_key::hash(key) & (capacity - 1);
+          while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
         }
         slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
         sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});

@@ -3,6 +3,7 @@
 #include "tabletop_shapes/core/cube_fit.h"
 #include "tabletop_shapes/core/cylinder_fit.h"
 #include "tabletop_shapes/core/normals.h"
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/predictor.h"
 
 #include <algorithm>
@@ -331,6 +332,15 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
   ShapeFit fit = estimateSolid(params_, cluster, table, cuts);
   markTruncation(cuts, table, fit);
   return fit;
+}
+
+std::vector<ShapeFit> ShapeEstimator::estimateAll(const std::vector<CloudPtr>& clusters,
+                                                  const std::vector<Plane>& supports,
+                                                  const ViewBounds* view) const {
+  std::vector<ShapeFit> fits(clusters.size());
+  parallelFor(clusters.size(),
+              [&](size_t i) { fits[i] = estimate(clusters[i], supports.at(i), view); });
+  return fits;
 }
 
 }  // namespace tabletop_shapes

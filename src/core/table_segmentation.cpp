@@ -3,9 +3,7 @@
 #include "tabletop_shapes/core/table_segmentation.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
-
-#include <pcl/filters/statistical_outlier_removal.h>
-#include <pcl/search/kdtree.h>
+#include "tabletop_shapes/core/grid_search.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -53,6 +51,8 @@ constexpr float kMinImageUpCosine = 0.1f;
 // Object points within hull_margin of the hull's edge are kept when linked to the points further
 // in by steps this short: twice the preprocessing voxel, so neighbouring surface samples link [m].
 constexpr float kEdgeLinkDistance = 0.01f;
+// GridSearch cell of the outlier removal's k-nearest searches [m].
+constexpr float kOutlierSearchCell = 0.03f;
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
@@ -244,7 +244,7 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   if (edge_band->empty() || reaching_the_band.empty()) return;
 
   // Grow from the inner points into the edge band.
-  pcl::search::KdTree<Point> tree(false);
+  GridSearch<Point> tree(kEdgeLinkDistance, false);
   tree.setInputCloud(edge_band);
   std::vector<bool> taken(edge_band->size(), false);
   std::vector<int> frontier, neighbours;
@@ -523,6 +523,9 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
   return false;  // collinear or coincident points
 }
 
+// §2.4 as pcl::StatisticalOutlierRemoval computes it (mean distance to the k nearest
+// neighbours, kept while <= mean + alpha * stddev over all points), with the neighbours from a
+// GridSearch instead of a k-d tree: the same points are kept, in a fraction of the time.
 void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Cloud& out) {
   out.clear();
   if (!in) return;
@@ -532,11 +535,32 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
     out = *in;
     return;
   }
-  pcl::StatisticalOutlierRemoval<Point> filter;
-  filter.setInputCloud(in);
-  filter.setMeanK(k);
-  filter.setStddevMulThresh(alpha);
-  filter.filter(out);
+  // The k neighbours of a 5 mm voxel surface lie within ~2 cm: the block of 3 x 3 x 3 cells
+  // around a point holds them, gathered once per cell. 2 cm cells left the k-th neighbour of
+  // edge points outside too often (the slow general search then): 2x PCL's instructions.
+  GridSearch<Point> search(kOutlierSearchCell);
+  search.setInputCloud(in);
+  std::vector<float> distances(in->size(), 0.0f);  // points without neighbours: 0, as PCL
+  int valid_count = 0;
+  search.forEachNearestK(k + 1, [&](int i, const std::vector<float>& squared) {
+    double sum = 0.0;
+    for (size_t j = 1; j < squared.size(); ++j) sum += std::sqrt(squared[j]);  // [0]: the point
+    distances[i] = static_cast<float>(sum / k);
+    ++valid_count;
+  });
+  double sum = 0.0, squared_sum = 0.0;
+  for (const float distance : distances) {
+    sum += distance;
+    squared_sum += distance * distance;
+  }
+  const double mean = sum / static_cast<double>(valid_count);
+  const double variance =
+      (squared_sum - sum * sum / static_cast<double>(valid_count)) / (valid_count - 1.0);
+  const double threshold = mean + alpha * std::sqrt(variance);
+  out.reserve(in->size());
+  for (size_t i = 0; i < in->size(); ++i) {
+    if (distances[i] <= threshold) out.push_back((*in)[i]);
+  }
   out.header = in->header;
   out.sensor_origin_ = in->sensor_origin_;
   out.sensor_orientation_ = in->sensor_orientation_;

@@ -96,8 +96,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     if (objects.table_found) {
       const std::vector<CloudPtr> parts = splitClusters(*clusters);
       const std::vector<Plane> supports = supportPlanes(parts, bridge::planeFromMsg(*table));
-      for (size_t c = 0; c < parts.size(); ++c) {
-        bridge::appendObject(estimator_.estimate(parts[c], supports[c]), objects.header, objects);
+      for (const ShapeFit& fit : estimator_.estimateAll(parts, supports)) {
+        bridge::appendObject(fit, objects.header, objects);
       }
     }
     if (!output_frame_.empty() && output_frame_ != objects.header.frame_id) {

@@ -31,6 +31,12 @@ class ShapeEstimator {
   // `view` (optional, the frame's ViewBounds) marks objects cut by the image border.
   ShapeFit estimate(const CloudConstPtr& cluster, const Plane& table,
                     const ViewBounds* view = nullptr) const;
+  // estimate() of every cluster on its support plane (supports[i] for clusters[i]), in the same
+  // order; the clusters are fitted in parallel, one per core at a time (largest first when they
+  // come largest first).
+  std::vector<ShapeFit> estimateAll(const std::vector<CloudPtr>& clusters,
+                                    const std::vector<Plane>& supports,
+                                    const ViewBounds* view = nullptr) const;
 
  private:
   ShapeEstimatorParams params_;

@@ -1,0 +1,72 @@
+// Neighbour search on a uniform grid: a drop-in pcl::search::Search for the core's point sets.
+// The core's clouds are voxel-grid centroids (one point per 5 mm voxel) and its queries are
+// radius searches of 2 cm and k-nearest searches of a few dozen points: such neighbourhoods
+// span a few grid cells, found by one hash lookup each, where a k-d tree descends and
+// backtracks through ~log2(n) levels per query. Results are exact (the same sets as a k-d tree;
+// a radius search keeps squared distances < radius^2 as FLANN does) and, when sorted, ordered
+// by distance, so the algorithms built on them give the same answers.
+//
+// Only .cpp files include this header (it pulls in pcl::search); explicit instantiations for
+// pcl::PointXYZ and pcl::PointNormal are in grid_search.cpp.
+#pragma once
+
+#include <pcl/search/search.h>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace tabletop_shapes {
+
+template <typename PointT>
+class GridSearch : public pcl::search::Search<PointT> {
+ public:
+  using typename pcl::search::Search<PointT>::PointCloud;
+  using typename pcl::search::Search<PointT>::PointCloudConstPtr;
+  using typename pcl::search::Search<PointT>::IndicesConstPtr;
+  using pcl::search::Search<PointT>::nearestKSearch;
+  using pcl::search::Search<PointT>::radiusSearch;
+
+  // cell_size: about the radius of the typical query (2 cm for the core's searches) [m].
+  explicit GridSearch(float cell_size, bool sorted = true);
+
+  void setInputCloud(const PointCloudConstPtr& cloud,
+                     const IndicesConstPtr& indices = IndicesConstPtr()) override;
+
+  int nearestKSearch(const PointT& point, int k, pcl::Indices& k_indices,
+                     std::vector<float>& k_sqr_distances) const override;
+
+  int radiusSearch(const PointT& point, double radius, pcl::Indices& k_indices,
+                   std::vector<float>& k_sqr_distances, unsigned int max_nn = 0) const override;
+
+  // The k nearest neighbours of every point of the input at once: visit(index, squared
+  // distances) with the k smallest squared distances in ascending order (the point itself
+  // first, at 0), points in no particular order. Faster than one nearestKSearch per point: the
+  // candidates around each cell are gathered once for all the points in it.
+  void forEachNearestK(int k,
+                       const std::function<void(int, const std::vector<float>&)>& visit) const;
+
+ private:
+  struct Cell {
+    uint64_t key;
+    uint32_t begin, end;  // range in points_
+  };
+  struct Entry {
+    float x, y, z;
+    int index;  // in the input cloud
+  };
+  uint64_t keyOf(int cx, int cy, int cz) const;
+  const Cell* find(uint64_t key) const;
+  // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
+  // (Chebyshev distance exactly `ring`).
+  template <typename Visit>
+  void visitRing(int cx, int cy, int cz, int ring, Visit&& visit) const;
+
+  float cell_size_, inv_cell_;
+  std::vector<Entry> points_;  // sorted by cell
+  std::vector<Cell> table_;    // open addressing; key ~0 = empty
+  size_t mask_ = 0;
+  int low_[3] = {0, 0, 0}, high_[3] = {0, 0, 0};  // occupied cell range per axis
+};
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,270 @@
+#include "tabletop_shapes/core/grid_search.h"
+
+#include "tabletop_shapes/core/voxel_key.h"
+
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tabletop_shapes {
+namespace {
+
+// Candidate buffer of the k-nearest search, one per thread: MLS may query one search from
+// several OpenMP threads.
+thread_local std::vector<std::pair<float, int>> candidates;
+
+inline bool finite(const float x, const float y, const float z) {
+  return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
+}
+
+}  // namespace
+
+template <typename PointT>
+GridSearch<PointT>::GridSearch(float cell_size, bool sorted)
+    : pcl::search::Search<PointT>("GridSearch", sorted),
+      cell_size_(cell_size),
+      inv_cell_(1.0f / cell_size) {}
+
+template <typename PointT>
+uint64_t GridSearch<PointT>::keyOf(int cx, int cy, int cz) const {
+  return voxel_key::pack(cx, cy, cz);
+}
+
+template <typename PointT>
+const typename GridSearch<PointT>::Cell* GridSearch<PointT>::find(uint64_t key) const {
+  if (table_.empty()) return nullptr;
+  for (size_t slot = voxel_key::hash(key) & mask_;; slot = (slot + 1) & mask_) {
+    const Cell& cell = table_[slot];
+    if (cell.key == key) return &cell;
+    if (cell.key == voxel_key::kEmpty) return nullptr;
+  }
+}
+
+template <typename PointT>
+void GridSearch<PointT>::setInputCloud(const PointCloudConstPtr& cloud,
+                                       const IndicesConstPtr& indices) {
+  this->input_ = cloud;
+  this->indices_ = indices;
+  points_.clear();
+  table_.clear();
+  if (!cloud) return;
+  const size_t count = indices ? indices->size() : cloud->size();
+  std::vector<std::pair<uint64_t, Entry>> keyed;
+  keyed.reserve(count);
+  for (int a = 0; a < 3; ++a) {
+    low_[a] = std::numeric_limits<int>::max();
+    high_[a] = std::numeric_limits<int>::min();
+  }
+  for (size_t i = 0; i < count; ++i) {
+    const int index = indices ? (*indices)[i] : static_cast<int>(i);
+    const PointT& p = (*cloud)[index];
+    if (!finite(p.x, p.y, p.z)) continue;
+    const float v[3] = {p.x * inv_cell_, p.y * inv_cell_, p.z * inv_cell_};
+    if (std::abs(v[0]) > voxel_key::kLimit || std::abs(v[1]) > voxel_key::kLimit ||
+        std::abs(v[2]) > voxel_key::kLimit) {
+      continue;  // kilometres away: not from a depth camera
+    }
+    int c[3];
+    for (int a = 0; a < 3; ++a) {
+      c[a] = static_cast<int>(voxel_key::floorToInt(v[a]));
+      low_[a] = std::min(low_[a], c[a]);
+      high_[a] = std::max(high_[a], c[a]);
+    }
+    keyed.push_back({keyOf(c[0], c[1], c[2]), Entry{p.x, p.y, p.z, index}});
+  }
+  // Sorted by cell, then by index: each cell's points are one range, in the cloud's order.
+  std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second.index < b.second.index;
+  });
+  points_.reserve(keyed.size());
+  size_t cells = 0;
+  for (size_t i = 0; i < keyed.size(); ++i) {
+    cells += i == 0 || keyed[i].first != keyed[i - 1].first;
+    points_.push_back(keyed[i].second);
+  }
+  size_t capacity = 16;
+  while (capacity < 2 * cells) capacity *= 2;
+  table_.assign(capacity, Cell{voxel_key::kEmpty, 0, 0});
+  mask_ = capacity - 1;
+  for (size_t begin = 0; begin < keyed.size();) {
+    size_t end = begin + 1;
+    while (end < keyed.size() && keyed[end].first == keyed[begin].first) ++end;
+    size_t slot = voxel_key::hash(keyed[begin].first) & mask_;
+    while (table_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & mask_;
+    table_[slot] = {keyed[begin].first, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)};
+    begin = end;
+  }
+}
+
+template <typename PointT>
+template <typename Visit>
+void GridSearch<PointT>::visitRing(int cx, int cy, int cz, int ring, Visit&& visit) const {
+  auto visitCell = [&](int x, int y, int z) {
+    if (x < low_[0] || x > high_[0] || y < low_[1] || y > high_[1] || z < low_[2] || z > high_[2]) {
+      return;
+    }
+    const Cell* cell = find(keyOf(x, y, z));
+    if (!cell) return;
+    for (uint32_t i = cell->begin; i < cell->end; ++i) visit(points_[i]);
+  };
+  if (ring == 0) {
+    visitCell(cx, cy, cz);
+    return;
+  }
+  // The shell of the (2 ring + 1)^3 block: its two x faces whole, then the y faces without the
+  // x edges, then the z faces without the x and y edges.
+  for (int y = cy - ring; y <= cy + ring; ++y) {
+    for (int z = cz - ring; z <= cz + ring; ++z) {
+      visitCell(cx - ring, y, z);
+      visitCell(cx + ring, y, z);
+    }
+  }
+  for (int x = cx - ring + 1; x <= cx + ring - 1; ++x) {
+    for (int z = cz - ring; z <= cz + ring; ++z) {
+      visitCell(x, cy - ring, z);
+      visitCell(x, cy + ring, z);
+    }
+  }
+  for (int x = cx - ring + 1; x <= cx + ring - 1; ++x) {
+    for (int y = cy - ring + 1; y <= cy + ring - 1; ++y) {
+      visitCell(x, y, cz - ring);
+      visitCell(x, y, cz + ring);
+    }
+  }
+}
+
+template <typename PointT>
+int GridSearch<PointT>::radiusSearch(const PointT& point, double radius, pcl::Indices& k_indices,
+                                     std::vector<float>& k_sqr_distances,
+                                     unsigned int max_nn) const {
+  k_indices.clear();
+  k_sqr_distances.clear();
+  if (points_.empty() || !finite(point.x, point.y, point.z) || !(radius >= 0.0)) return 0;
+  const float radius_sq = static_cast<float>(radius * radius);  // as pcl::KdTreeFLANN
+  const int reach = static_cast<int>(std::ceil(radius * inv_cell_));
+  const int cx = static_cast<int>(voxel_key::floorToInt(point.x * inv_cell_));
+  const int cy = static_cast<int>(voxel_key::floorToInt(point.y * inv_cell_));
+  const int cz = static_cast<int>(voxel_key::floorToInt(point.z * inv_cell_));
+  auto& found = candidates;
+  found.clear();
+  for (int ring = 0; ring <= reach; ++ring) {
+    visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+      const float dx = e.x - point.x, dy = e.y - point.y, dz = e.z - point.z;
+      const float d = dx * dx + dy * dy + dz * dz;
+      if (d < radius_sq) found.emplace_back(d, e.index);
+    });
+  }
+  const bool limited = max_nn > 0 && found.size() > max_nn;
+  if (limited) {
+    std::partial_sort(found.begin(), found.begin() + max_nn, found.end());
+    found.resize(max_nn);
+  } else if (this->sorted_results_) {
+    std::sort(found.begin(), found.end());
+  }
+  k_indices.reserve(found.size());
+  k_sqr_distances.reserve(found.size());
+  for (const auto& [d, index] : found) {
+    k_indices.push_back(index);
+    k_sqr_distances.push_back(d);
+  }
+  return static_cast<int>(found.size());
+}
+
+template <typename PointT>
+int GridSearch<PointT>::nearestKSearch(const PointT& point, int k, pcl::Indices& k_indices,
+                                       std::vector<float>& k_sqr_distances) const {
+  k_indices.clear();
+  k_sqr_distances.clear();
+  if (points_.empty() || k <= 0 || !finite(point.x, point.y, point.z)) return 0;
+  const float fx = point.x * inv_cell_, fy = point.y * inv_cell_, fz = point.z * inv_cell_;
+  const int cx = static_cast<int>(voxel_key::floorToInt(fx));
+  const int cy = static_cast<int>(voxel_key::floorToInt(fy));
+  const int cz = static_cast<int>(voxel_key::floorToInt(fz));
+  // Beyond this ring no cell holds a point.
+  const int last_ring = std::max(
+      {cx - low_[0], high_[0] - cx, cy - low_[1], high_[1] - cy, cz - low_[2], high_[2] - cz});
+  // Distance from the point to the nearest face of its own cell [cells]: after ring r every
+  // point closer than r + inset cells has been seen.
+  const float inset = std::min({fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz});
+  const size_t wanted = static_cast<size_t>(k);
+  auto& found = candidates;
+  found.clear();
+  for (int ring = 0; ring <= last_ring; ++ring) {
+    visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+      const float dx = e.x - point.x, dy = e.y - point.y, dz = e.z - point.z;
+      found.emplace_back(dx * dx + dy * dy + dz * dz, e.index);
+    });
+    if (found.size() < wanted) continue;
+    std::nth_element(found.begin(), found.begin() + (wanted - 1), found.end());
+    const float covered = (static_cast<float>(ring) + inset) * cell_size_;
+    if (found[wanted - 1].first <= covered * covered) break;
+  }
+  const size_t n = std::min(wanted, found.size());
+  if (n < found.size()) std::nth_element(found.begin(), found.begin() + (n - 1), found.end());
+  std::sort(found.begin(), found.begin() + n);  // cheaper than a partial sort of all
+  k_indices.resize(n);
+  k_sqr_distances.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    k_sqr_distances[i] = found[i].first;
+    k_indices[i] = found[i].second;
+  }
+  return static_cast<int>(n);
+}
+
+template <typename PointT>
+void GridSearch<PointT>::forEachNearestK(
+    int k, const std::function<void(int, const std::vector<float>&)>& visit) const {
+  if (k <= 0) return;
+  const size_t wanted = static_cast<size_t>(k);
+  std::vector<float> xs, ys, zs, squared, nearest;
+  pcl::Indices fallback_indices;
+  for (size_t begin = 0; begin < points_.size();) {
+    const Entry& first = points_[begin];
+    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
+    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
+    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
+    const Cell* cell = find(keyOf(cx, cy, cz));
+    const size_t end = cell->end;
+    // Every point of the 3 x 3 x 3 block of cells around this one.
+    xs.clear(), ys.clear(), zs.clear();
+    for (int ring = 0; ring <= 1; ++ring) {
+      visitRing(cx, cy, cz, ring,
+                [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); });
+    }
+    for (size_t i = begin; i < end; ++i) {
+      const Entry& q = points_[i];
+      squared.resize(xs.size());
+      for (size_t j = 0; j < xs.size(); ++j) {
+        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+        squared[j] = dx * dx + dy * dy + dz * dz;
+      }
+      // The block holds every point closer than 1 + inset cells (inset: the distance from q
+      // to its cell's nearest face); beyond that the k-th neighbour needs the general search.
+      const float fx = q.x * inv_cell_ - cx, fy = q.y * inv_cell_ - cy, fz = q.z * inv_cell_ - cz;
+      const float inset = std::min({fx, 1 - fx, fy, 1 - fy, fz, 1 - fz});
+      const float covered = (1.0f + std::max(inset, 0.0f)) * cell_size_;
+      bool complete = squared.size() >= wanted;
+      if (complete) {
+        std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
+        complete = squared[wanted - 1] <= covered * covered;
+      }
+      if (complete) {
+        nearest.assign(squared.begin(), squared.begin() + wanted);
+        std::sort(nearest.begin(), nearest.end());
+      } else {
+        PointT point;
+        point.x = q.x, point.y = q.y, point.z = q.z;
+        nearestKSearch(point, k, fallback_indices, nearest);
+      }
+      visit(q.index, nearest);
+    }
+    begin = end;
+  }
+}
+
+template class GridSearch<pcl::PointXYZ>;
+template class GridSearch<pcl::PointNormal>;
+
+}  // namespace tabletop_shapes

@@ -1,0 +1,97 @@
+// tabletop_shapes/LatencyProbe: the clock of `make benchmark-speed`. Loaded into the manager of
+// the chain it measures, it subscribes to the chain's topics with their own types (so clouds
+// reach it by pointer, without a copy or serialisation that would slow the chain down) and
+// writes one CSV line per message: topic, the message's stamp and the wall time it arrived, both
+// in microseconds. The feeder stamps each cloud with the wall time it publishes it, so arrival
+// minus stamp is the latency from the input to that stage's output.
+// Parameters: ~output (CSV path), ~topics (comma-separated "name:type", type one of xyz, xyzl,
+//   table, objects, pc2; names resolved in the nodelet's namespace).
+#include "tabletop_shapes/Objects.h"
+#include "tabletop_shapes/Table.h"
+
+#include <nodelet/nodelet.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <pcl_ros/point_cloud.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <cinttypes>
+#include <cstdio>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace tabletop_shapes {
+
+class LatencyProbeNodelet : public nodelet::Nodelet {
+ public:
+  ~LatencyProbeNodelet() override {
+    if (file_) std::fclose(file_);
+  }
+
+ private:
+  void onInit() override {
+    ros::NodeHandle& node = getNodeHandle();
+    ros::NodeHandle& private_node = getPrivateNodeHandle();
+    const std::string output = private_node.param<std::string>("output", "latency.csv");
+    file_ = std::fopen(output.c_str(), "w");
+    if (!file_) {
+      NODELET_ERROR("cannot write %s", output.c_str());
+      return;
+    }
+    std::fprintf(file_, "topic,stamp_us,arrival_us\n");
+    std::fflush(file_);
+    // One string: a list on the `nodelet load` command line does not reach the nodelet.
+    std::vector<std::string> topics;
+    std::stringstream list(private_node.param<std::string>("topics", ""));
+    for (std::string entry; std::getline(list, entry, ',');) {
+      if (!entry.empty()) topics.push_back(entry);
+    }
+    for (const std::string& entry : topics) {
+      const size_t colon = entry.rfind(':');
+      const std::string name = entry.substr(0, colon);
+      const std::string type = colon == std::string::npos ? "" : entry.substr(colon + 1);
+      if (type == "xyz") {
+        subscribe<pcl::PointCloud<pcl::PointXYZ>>(
+            node, name, [](const auto& m) { return pcl_conversions::fromPCL(m.header).stamp; });
+      } else if (type == "xyzl") {
+        subscribe<pcl::PointCloud<pcl::PointXYZL>>(
+            node, name, [](const auto& m) { return pcl_conversions::fromPCL(m.header).stamp; });
+      } else if (type == "table") {
+        subscribe<Table>(node, name, [](const auto& m) { return m.header.stamp; });
+      } else if (type == "objects") {
+        subscribe<Objects>(node, name, [](const auto& m) { return m.header.stamp; });
+      } else if (type == "pc2") {
+        subscribe<sensor_msgs::PointCloud2>(node, name,
+                                            [](const auto& m) { return m.header.stamp; });
+      } else {
+        NODELET_ERROR(
+            "topic entry '%s': expected name:type with type xyz, xyzl, table, "
+            "objects or pc2",
+            entry.c_str());
+      }
+    }
+  }
+
+  template <typename Message, typename StampOf>
+  void subscribe(ros::NodeHandle& node, const std::string& name, StampOf stamp_of) {
+    const std::string resolved = node.resolveName(name);
+    subscribers_.push_back(node.subscribe<Message>(
+        name, 50, [this, resolved, stamp_of](const boost::shared_ptr<const Message>& message) {
+          const int64_t arrival = ros::WallTime::now().toNSec() / 1000;
+          const int64_t stamp = stamp_of(*message).toNSec() / 1000;
+          std::lock_guard<std::mutex> lock(mutex_);
+          std::fprintf(file_, "%s,%" PRId64 ",%" PRId64 "\n", resolved.c_str(), stamp, arrival);
+          std::fflush(file_);  // the manager may be killed at the end of a run
+        }));
+  }
+
+  FILE* file_ = nullptr;
+  std::mutex mutex_;
+  std::vector<ros::Subscriber> subscribers_;
+};
+
+}  // namespace tabletop_shapes
+
+PLUGINLIB_EXPORT_CLASS(tabletop_shapes::LatencyProbeNodelet, nodelet::Nodelet)
