@@ -12,6 +12,7 @@
 // pairs depth and colour frames by timestamp, paces recordings at their recorded rate and
 // closes everything cleanly (OpenNI2 needs time between VideoStream::stop() and destroy()).
 #include "tabletop_shapes/core/depth_to_cloud.h"
+#include "tabletop_shapes/core/oni_recording.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/OpenNI2DriverConfig.h"
 
@@ -31,7 +32,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -86,44 +86,6 @@ std::optional<ModeSize> modeSize(int mode) {
       {640, 400, 60},   {320, 200, 60}};
   if (mode < 1 || mode > static_cast<int>(sizeof(kModes) / sizeof(kModes[0]))) return {};
   return kModes[mode - 1];
-}
-
-bool looksLikeRecording(const std::string& device_id) {
-  const std::string suffix = ".oni";
-  return device_id.size() > suffix.size() &&
-         std::equal(suffix.rbegin(), suffix.rend(), device_id.rbegin(),
-                    [](char a, char b) { return std::tolower(a) == b; });
-}
-
-// OpenNI2's file driver refuses a damaged recording without saying why: walk its records
-// (header, then "NIR\0" records up to END) and name the problem. Empty = the file looks whole.
-std::string recordingProblem(const std::string& path) {
-  std::ifstream file(path, std::ios::binary | std::ios::ate);
-  if (!file) return "recording " + path + " does not exist or cannot be read";
-  const uint64_t size = static_cast<uint64_t>(file.tellg());
-  constexpr uint64_t kHeaderSize = 24, kRecordHeaderSize = 28;
-  char magic[4] = {};
-  file.seekg(0);
-  file.read(magic, 4);
-  if (size < kHeaderSize || std::memcmp(magic, "NI10", 4) != 0) {
-    return "recording " + path + " is not an .oni file (" + std::to_string(size) +
-           " bytes, no NI10 header)";
-  }
-  uint64_t offset = kHeaderSize;
-  for (int record = 1;; ++record) {
-    if (offset + kRecordHeaderSize > size) {
-      return "recording " + path + " is truncated: it ends at byte " + std::to_string(size) +
-             " inside record " + std::to_string(record) + " (no END record)";
-    }
-    uint32_t header[5];
-    file.seekg(static_cast<std::streamoff>(offset));
-    file.read(reinterpret_cast<char*>(header), sizeof(header));
-    if (!file || header[0] != 0x0052494E || header[3] < kRecordHeaderSize) {
-      return "recording " + path + " is damaged: no valid record at byte " + std::to_string(offset);
-    }
-    if (header[1] == 11) return "";  // END
-    offset += static_cast<uint64_t>(header[3]) + header[4];
-  }
 }
 
 // Device time (microseconds) -> ROS time. Live devices: offset = the smallest observed
@@ -341,7 +303,7 @@ bool OpenNI2DriverNodelet::wantColor() const {
 bool OpenNI2DriverNodelet::openDevice(std::string* problem) {
   std::string uri = device_id_;
   if (looksLikeRecording(device_id_)) {
-    *problem = recordingProblem(device_id_);
+    *problem = oniRecordingProblem(device_id_);
     if (!problem->empty()) return false;
   } else {
     openni::Array<openni::DeviceInfo> devices;
