@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cmath>
 #include <iterator>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -44,6 +45,12 @@ constexpr float kBelowSupportInset = 0.01f;
 // over the table). Cells of 5 cm hold several points even for clouds thinned to 2-3 cm.
 constexpr float kCoverageCell = 0.05f;
 constexpr float kMinSupportCoverage = 0.25f;
+// A plane is a surface seen with the sensor's noise: its inliers crowd into the kSurfaceSlab
+// around it. Scattered points (a cloud of random points) fill the RANSAC band evenly: the
+// densest slab then holds no more points per millimetre than the rest of the band (contrast
+// ~1.0-1.3 from chance alone at min_inliers). A Kinect plane at 3 m (sigma ~10 mm, the
+// farthest preprocess keeps) still gives 1.5; tables at 0.5-1.5 m give 3 or more.
+constexpr float kMinSurfaceContrast = 1.5f;
 // estimateUp: a support plane's normal, oriented towards the camera, points up in the image
 // (negative optical y) by at least this cosine; walls facing a level or downward-tilted camera,
 // box faces and ceilings do not.
@@ -106,8 +113,21 @@ void collectInliers(const Cloud& cloud, const std::vector<int>& indices, const P
   }
 }
 
+// [first, second) of the longest run of the sorted `values` that spans at most `width`.
+std::pair<size_t, size_t> densestWindow(const std::vector<float>& values, float width) {
+  size_t best_begin = 0, best_end = 0;
+  for (size_t begin = 0, end = 0; begin < values.size(); ++begin) {
+    while (end < values.size() && values[end] <= values[begin] + width) ++end;
+    if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
+  }
+  return {best_begin, best_end};
+}
+
 // RANSAC for the plane with the most inliers among `indices` whose (oriented) normal satisfies
 // the constraint, refined by OLS and re-collected. False when no acceptable plane is found.
+// The refined plane is returned even when it leaves the constraint: its inliers then lie on a
+// plane tilted beyond it, which a hypothesis within it cut along a strip (a 20 deg plane was
+// taken as a table through a strip 7.7 deg from up), and the caller refuses it.
 bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const TableParams& params,
                  const NormalConstraint& constraint, std::mt19937& rng, Plane& plane,
                  std::vector<int>& inliers) {
@@ -150,9 +170,11 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     collectInliers(cloud, indices, plane, threshold, inliers);
     Plane refined = plane;
     if (!refinePlaneOLS(cloud, inliers, refined)) break;
-    refined = orient(refined, constraint);
-    if (!acceptable(refined, constraint)) break;
-    plane = refined;
+    plane = orient(refined, constraint);
+    if (!acceptable(plane, constraint)) {
+      collectInliers(cloud, indices, plane, threshold, inliers);
+      return true;
+    }
   }
   // The surface itself: the densest kSurfaceSlab of the inliers, refined on the points within
   // it. Objects standing on the surface add the lowest centimetres of their sides evenly over
@@ -164,11 +186,7 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     distances.reserve(inliers.size());
     for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
     std::sort(distances.begin(), distances.end());
-    size_t best_begin = 0, best_end = 0;
-    for (size_t begin = 0, end = 0; begin < distances.size(); ++begin) {
-      while (end < distances.size() && distances[end] <= distances[begin] + kSurfaceSlab) ++end;
-      if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
-    }
+    const auto [best_begin, best_end] = densestWindow(distances, kSurfaceSlab);
     if (best_end - best_begin < 3) break;
     Plane shifted = plane;
     shifted.d -= (distances[best_begin] + distances[best_end - 1]) / 2;
@@ -176,10 +194,9 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
     Plane refined = shifted;
     if (!refinePlaneOLS(cloud, slab, refined)) break;
-    refined = orient(refined, constraint);
-    if (!acceptable(refined, constraint)) break;
-    plane = refined;
+    plane = orient(refined, constraint);
     collectInliers(cloud, indices, plane, threshold, inliers);
+    if (!acceptable(plane, constraint)) return true;
   }
   collectInliers(cloud, indices, plane, threshold, inliers);
   return true;
@@ -268,10 +285,33 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   std::sort(indices.begin(), indices.end());  // keep the cloud's order
 }
 
+// How much denser the inliers are within the kSurfaceSlab around the plane than in the rest
+// of the RANSAC band (both per millimetre of thickness): ~1 for scattered points, above
+// kMinSurfaceContrast for a surface. Infinite when the band is too thin to tell.
+float surfaceContrast(const Cloud& cloud, const Candidate& candidate, float threshold) {
+  const float band = 2.0f * threshold;
+  if (band < 1.5f * kSurfaceSlab || candidate.inliers.empty()) {
+    return std::numeric_limits<float>::infinity();
+  }
+  std::vector<float> distances;
+  distances.reserve(candidate.inliers.size());
+  for (int i : candidate.inliers) {
+    distances.push_back(candidate.plane.signedDistance(cloud[i].getVector3fMap()));
+  }
+  std::sort(distances.begin(), distances.end());
+  const auto [begin, end] = densestWindow(distances, kSurfaceSlab);
+  const float in_slab = static_cast<float>(end - begin);
+  const float outside = std::max(1.0f, static_cast<float>(distances.size()) - in_slab);
+  return (in_slab / kSurfaceSlab) / (outside / (band - kSurfaceSlab));
+}
+
 // Up to max_planes planes satisfying the constraint, each with >= min_inliers points; the
-// inliers of each are removed before the next is searched.
+// inliers of each are removed before the next is searched. A plane whose refined normal leaves
+// the constraint, or whose inliers are scattered points rather than a surface, is no candidate:
+// `refused`, when given, receives why (for the reason of "no table").
 std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
-                                  const NormalConstraint& constraint) {
+                                  const NormalConstraint& constraint,
+                                  std::vector<std::string>* refused = nullptr) {
   std::vector<int> remaining;
   remaining.reserve(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
@@ -293,6 +333,23 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
     std::set_difference(remaining.begin(), remaining.end(), candidate.inliers.begin(),
                         candidate.inliers.end(), std::back_inserter(rest));
     remaining.swap(rest);
+    char refusal[128] = "";
+    if (!acceptable(candidate.plane, constraint)) {
+      const float cosine = std::clamp(candidate.plane.normal.dot(constraint.axis), -1.0f, 1.0f);
+      std::snprintf(refusal, sizeof refusal, "a plane of %zu points tilted %.1f deg from up",
+                    candidate.inliers.size(), std::acos(cosine) * 180.0f / static_cast<float>(kPi));
+    } else if (const float contrast = surfaceContrast(cloud, candidate, params.distance_threshold);
+               contrast < kMinSurfaceContrast) {
+      std::snprintf(refusal, sizeof refusal,
+                    "%zu scattered points, not a surface (%.2fx denser within %.0f mm of the "
+                    "plane than beyond, a surface >= %.1fx)",
+                    candidate.inliers.size(), contrast, kSurfaceSlab * 1000.0f,
+                    kMinSurfaceContrast);
+    }
+    if (refusal[0] != '\0') {
+      if (refused) refused->push_back(refusal);
+      continue;
+    }
     buildHull(cloud, candidate);
     candidates.push_back(std::move(candidate));
   }
@@ -433,12 +490,16 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   }
   const NormalConstraint constraint{params_.up / up_norm,
                                     std::cos(degToRad(params_.up_tolerance_deg)), false};
-  const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint);
+  std::vector<std::string> refused;
+  const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
   if (candidates.empty()) {
     char reason[128];
     std::snprintf(reason, sizeof reason, "no plane within %g deg of up with at least %d points",
                   params_.up_tolerance_deg, params_.min_inliers);
     result.reason = reason;
+    for (size_t i = 0; i < refused.size(); ++i) {
+      result.reason += (i == 0 ? "; refused: " : ", ") + refused[i];
+    }
     return result;
   }
   std::vector<int> objects;

@@ -68,6 +68,20 @@ def cloud2(points, width=None, height=1):
     return msg + struct.pack("<B", 0)
 
 
+def oni_record(kind, node, fields=b"", payload=b""):
+    """One .oni record: "NIR\\0", type, node id, header size (28 + fields), payload size, undo."""
+    return struct.pack("<IIIIIQ", 0x0052494E, kind, node, 28 + len(fields), len(payload),
+                       0) + fields + payload
+
+
+def oni(records_end=True):
+    """The skeleton of a recording as render_oni writes it: the NI10 header, a node-added
+    record (13) with its name, a frame record (9) with a small payload, then END (11)."""
+    head = b"NI10" + struct.pack("<HHHH", 1, 1, 0, 0) + struct.pack("<IIi", 0x8235, 0, 1)
+    body = oni_record(13, 1, b"\x06\x00\x00\x00Depth\x00") + oni_record(9, 1, b"", b"\x01" * 64)
+    return head + body + (oni_record(11, 0) if records_end else b"")
+
+
 def main():
     points = scene()
     for encoding in ("ascii", "binary", "binary_compressed"):
@@ -83,6 +97,8 @@ def main():
     out("fuzz_pipeline", "scene", b"\x00" + raw)
     out("fuzz_pipeline", "scene_auto_up", b"\x80" + raw)
     out("fuzz_pipeline", "organised", b"\x0c" + raw[:12 * 120])
+    out("fuzz_oni_recording", "whole.oni", oni())
+    out("fuzz_oni_recording", "no_end.oni", oni(records_end=False))
     out("fuzz_pipeline", "nan", b"\x00" + struct.pack("<fff", math.nan, 0.0, math.inf) * 8)
 
 
