@@ -13,6 +13,7 @@
 // closes everything cleanly (OpenNI2 needs time between VideoStream::stop() and destroy()).
 #include "tabletop_shapes/core/depth_to_cloud.h"
 #include "tabletop_shapes/core/oni_recording.h"
+#include "tabletop_shapes/core/playback_schedule.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/OpenNI2DriverConfig.h"
 
@@ -166,7 +167,7 @@ class OpenNI2DriverNodelet : public nodelet::Nodelet {
   void handleDepth(const openni::VideoFrameRef& frame);
   void handleColor(const openni::VideoFrameRef& frame);
   void publishCloud();
-  ros::Time paceRecording(uint64_t device_us);
+  ros::Time paceRecording(int stream, uint64_t device_us);  // stream: 0 depth, 1 colour
   void reportProblem(const std::string& problem, const std::string& detail = "");
 
   // parameters
@@ -208,12 +209,10 @@ class OpenNI2DriverNodelet : public nodelet::Nodelet {
   bool rgb_valid_ = false;
   bool warned_unregistered_ = false;
   bool started_depth_ = false, started_color_ = false;  // the wanted set the streams run for
-  // recording playback schedule
-  Clock::time_point playback_origin_;
+  // recording playback schedule: its start on both clocks
+  PlaybackSchedule playback_;
   ros::Time playback_origin_stamp_;
-  uint64_t playback_origin_us_ = 0, playback_last_us_ = 0;
-  Clock::time_point playback_last_due_;
-  bool playback_started_ = false;
+  Clock::time_point playback_origin_due_;
   int frame_period_us_ = 33333;
 };
 
@@ -473,7 +472,7 @@ void OpenNI2DriverNodelet::startStreams(bool depth, bool color) {
     }
   }
   clock_.reset();
-  playback_started_ = false;
+  playback_.reset();
   depth_pending_ = rgb_valid_ = false;
 }
 
@@ -506,35 +505,21 @@ void OpenNI2DriverNodelet::closeDevice() {
   }
 }
 
-ros::Time OpenNI2DriverNodelet::paceRecording(uint64_t device_us) {
-  // The player (manual mode) delivers frames as fast as they are read and restarts a looping
-  // recording at once: sleep until each frame is due at the recorded rate (times
-  // playback_speed), continuing the schedule one frame period after the last frame at a loop.
-  // The stamp is the scheduled time, the same for depth and colour of one instant.
-  const double speed = active_.playback_speed;
-  if (speed <= 0.0) return ros::Time::now();
-  auto scaled = [speed](double microseconds) {
-    return std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double, std::micro>(microseconds / speed));
-  };
-  const bool restart = !playback_started_ || device_us < playback_last_us_ ||
-                       device_us > playback_last_us_ + 10ull * frame_period_us_;
-  if (restart) {
-    const Clock::duration gap = playback_started_ ? scaled(frame_period_us_) : Clock::duration(0);
-    playback_origin_ = playback_started_ ? playback_last_due_ + gap : Clock::now();
-    if (playback_origin_ < Clock::now() - std::chrono::seconds(1)) playback_origin_ = Clock::now();
+ros::Time OpenNI2DriverNodelet::paceRecording(int stream, uint64_t device_us) {
+  // Sleep until the frame is due (PlaybackSchedule); the stamp is the scheduled time, the same
+  // for depth and colour of one instant, on ROS time as it was when the schedule began.
+  if (active_.playback_speed <= 0.0) return ros::Time::now();
+  playback_.configure(frame_period_us_, active_.playback_speed);
+  const PlaybackSchedule::Slot slot = playback_.schedule(stream, device_us, Clock::now());
+  if (slot.restarted) {
     playback_origin_stamp_ =
         ros::Time::now() +
-        ros::Duration(std::chrono::duration<double>(playback_origin_ - Clock::now()).count());
-    playback_origin_us_ = device_us;
-    playback_started_ = true;
+        ros::Duration(std::chrono::duration<double>(slot.due - Clock::now()).count());
+    playback_origin_due_ = slot.due;
   }
-  const auto due = playback_origin_ + scaled(static_cast<double>(device_us - playback_origin_us_));
-  sleepUntil(due);
-  playback_last_us_ = device_us;
-  playback_last_due_ = due;
-  const double seconds =
-      playback_origin_stamp_.toSec() + (device_us - playback_origin_us_) * 1e-6 / speed;
+  sleepUntil(slot.due);
+  const double seconds = playback_origin_stamp_.toSec() +
+                         std::chrono::duration<double>(slot.due - playback_origin_due_).count();
   ros::Time stamp;
   stamp.fromNSec(static_cast<uint64_t>(std::llround(seconds * 1e6)) * 1000ull);  // whole us
   return stamp;
@@ -542,7 +527,8 @@ ros::Time OpenNI2DriverNodelet::paceRecording(uint64_t device_us) {
 
 void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
   const uint64_t device_us = frame.getTimestamp();
-  const ros::Time stamp = is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
+  const ros::Time stamp =
+      is_recording_ ? paceRecording(0, device_us) : clock_.stamp(device_us, true);
   if (depth_.frames_seen++ % static_cast<uint64_t>(active_.data_skip + 1) != 0) return;
   const int width = frame.getWidth(), height = frame.getHeight();
   const int pixels = width * height;
@@ -591,7 +577,8 @@ void OpenNI2DriverNodelet::handleDepth(const openni::VideoFrameRef& frame) {
 
 void OpenNI2DriverNodelet::handleColor(const openni::VideoFrameRef& frame) {
   const uint64_t device_us = frame.getTimestamp();
-  const ros::Time stamp = is_recording_ ? paceRecording(device_us) : clock_.stamp(device_us, true);
+  const ros::Time stamp =
+      is_recording_ ? paceRecording(1, device_us) : clock_.stamp(device_us, true);
   if (color_.frames_seen++ % static_cast<uint64_t>(active_.data_skip + 1) != 0) return;
   const int width = frame.getWidth(), height = frame.getHeight();
   const size_t bytes = static_cast<size_t>(width) * height * 3;
