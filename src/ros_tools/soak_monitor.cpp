@@ -110,13 +110,25 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
   int minute = 0;
+  size_t minute_start = 0;  // index into latencies_ms of the minute's first objects message
   while (ros::ok() && ros::WallTime::now() < end) {
     ros::WallDuration(1.0).sleep();
     const double elapsed = seconds - (end - ros::WallTime::now()).toSec();
     if (elapsed >= 60.0 * (minute + 1)) {
       ++minute;
-      std::printf("soak: %3d min, objects %zu, RSS %.1f MB\n", minute,
-                  monitor.objects - objects_start, monitor.value("preprocess", "process RSS [MB]"));
+      // Each minute's own latency: a backlog, or stamps that stand still, show as growth here.
+      std::vector<double> this_minute;
+      size_t objects_now;
+      {
+        std::lock_guard<std::mutex> lock(monitor.mutex);
+        this_minute.assign(monitor.latencies_ms.begin() + minute_start, monitor.latencies_ms.end());
+        minute_start = monitor.latencies_ms.size();
+        objects_now = monitor.objects;
+      }
+      std::printf("soak: %3d min, objects %zu, RSS %.1f MB, latency p50 %.0f ms, max %.0f ms\n",
+                  minute, objects_now - objects_start,
+                  monitor.value("preprocess", "process RSS [MB]"), percentile(this_minute, 0.5),
+                  percentile(this_minute, 1.0));
       std::fflush(stdout);
     }
   }
