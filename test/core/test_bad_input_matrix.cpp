@@ -136,15 +136,16 @@ TEST(BadInputMatrix, PlaneTiltedWithinTheTolerance) {
   EXPECT_NEAR(outcome.result.table.plane.normal.z(), std::cos(t), 0.002f);
 }
 
-// 5 million random points in a 1 m cube: every 3 cm slab holds ~150,000 of them, far above
-// min_inliers, but evenly spread across it: no surface, no table.
-TEST(BadInputMatrix, FiveMillionRandomPoints) {
+// Random points in a 1 m cube (issue 16 found 5 million of them taken as a table; 1 million
+// show the same: every 3 cm slab holds ~30,000 of them, far above min_inliers, but evenly
+// spread across it, so no surface and no table).
+TEST(BadInputMatrix, AMillionRandomPoints) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-0.5f, 0.5f);
   Cloud cloud;
-  cloud.reserve(5000000);
-  for (int i = 0; i < 5000000; ++i) cloud.push_back(Point(u(rng), 1.0f + u(rng), u(rng)));
-  expectNoTable(cloud, "scattered points, not a surface", 30.0);  // as FiveMillionPoints
+  cloud.reserve(1000000);
+  for (int i = 0; i < 1000000; ++i) cloud.push_back(Point(u(rng), 1.0f + u(rng), u(rng)));
+  expectNoTable(cloud, "scattered points, not a surface", 30.0);  // as the other large rows
 }
 
 // A plane as noisy as a Kinect v1 sees one at ~2.7 m (sigma 8 mm) is still a surface.
