@@ -2,11 +2,13 @@
 
 #include "tabletop_shapes/core/voxel_key.h"
 
+#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 namespace tabletop_shapes {
 namespace {
@@ -220,6 +222,7 @@ void GridSearch<PointT>::forEachNearestK(
   const size_t wanted = static_cast<size_t>(k);
   std::vector<float> xs, ys, zs, squared, nearest;
   pcl::Indices fallback_indices;
+  std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   for (size_t begin = 0; begin < points_.size();) {
     const Entry& first = points_[begin];
     const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
@@ -254,9 +257,17 @@ void GridSearch<PointT>::forEachNearestK(
         nearest.assign(squared.begin(), squared.begin() + wanted);
         std::sort(nearest.begin(), nearest.end());
       } else {
+        // A k-d tree, not the grid's growing rings: the points that get here are the sparse
+        // ones (flying pixels, edges), whose rings run through many empty cells before k
+        // points turn up. It finds the same distances (FLANN sums the squares in the same
+        // order) and is built at the first such point.
+        if (!fallback) {
+          fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
+          fallback->setInputCloud(this->input_, this->indices_);
+        }
         PointT point;
         point.x = q.x, point.y = q.y, point.z = q.z;
-        nearestKSearch(point, k, fallback_indices, nearest);
+        fallback->nearestKSearch(point, k, fallback_indices, nearest);
       }
       visit(q.index, nearest);
     }
