@@ -238,20 +238,27 @@ void GridSearch<PointT>::forEachNearestK(
     }
     for (size_t i = begin; i < end; ++i) {
       const Entry& q = points_[i];
-      squared.resize(xs.size());
-      for (size_t j = 0; j < xs.size(); ++j) {
-        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-        squared[j] = dx * dx + dy * dy + dz * dz;
-      }
       // The block holds every point closer than 1 + inset cells (inset: the distance from q
       // to its cell's nearest face); beyond that the k-th neighbour needs the general search.
+      // Only the points within that distance can be among the k nearest found here: the
+      // others are not kept (half of the block on a surface), so the selection below is
+      // cheaper and finds the same k distances.
       const float fx = q.x * inv_cell_ - cx, fy = q.y * inv_cell_ - cy, fz = q.z * inv_cell_ - cz;
       const float inset = std::min({fx, 1 - fx, fy, 1 - fy, fz, 1 - fz});
       const float covered = (1.0f + std::max(inset, 0.0f)) * cell_size_;
-      bool complete = squared.size() >= wanted;
+      const float covered_squared = covered * covered;
+      squared.resize(xs.size());
+      size_t kept = 0;
+      for (size_t j = 0; j < xs.size(); ++j) {
+        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+        const float d = dx * dx + dy * dy + dz * dz;
+        squared[kept] = d;
+        kept += d <= covered_squared;
+      }
+      squared.resize(kept);
+      const bool complete = kept >= wanted;
       if (complete) {
         std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
-        complete = squared[wanted - 1] <= covered * covered;
       }
       if (complete) {
         nearest.assign(squared.begin(), squared.begin() + wanted);
