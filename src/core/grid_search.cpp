@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <numeric>
 
 namespace tabletop_shapes {
 namespace {
@@ -280,6 +281,62 @@ void GridSearch<PointT>::forEachNearestK(
     }
     begin = end;
   }
+}
+
+template <typename PointT>
+std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius) const {
+  std::vector<pcl::Indices> components;
+  if (points_.empty() || !(radius >= 0.0)) return components;
+  const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
+  const int reach = static_cast<int>(std::ceil(radius * inv_cell_));
+  // Union-find over positions in points_; a root is the smallest position of its set.
+  std::vector<uint32_t> parent(points_.size());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto root = [&](uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (size_t begin = 0; begin < points_.size();) {
+    const Entry& first = points_[begin];
+    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
+    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
+    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
+    const size_t end = find(keyOf(cx, cy, cz))->end;
+    for (int ring = 0; ring <= reach; ++ring) {
+      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+        const uint32_t j = static_cast<uint32_t>(&e - points_.data());
+        for (size_t i = begin; i < end; ++i) {
+          if (j <= i) continue;  // each pair once
+          const Entry& q = points_[i];
+          const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
+          if (dx * dx + dy * dy + dz * dz < radius_sq) {
+            const uint32_t a = root(static_cast<uint32_t>(i)), b = root(j);
+            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+          }
+        }
+      });
+    }
+    begin = end;
+  }
+  // Components numbered by their smallest input index.
+  std::vector<int> smallest(points_.size(), std::numeric_limits<int>::max());
+  for (size_t i = 0; i < points_.size(); ++i) {
+    int& s = smallest[root(static_cast<uint32_t>(i))];
+    s = std::min(s, points_[i].index);
+  }
+  std::vector<std::pair<int, uint32_t>> roots;  // (smallest input index, root)
+  for (size_t i = 0; i < points_.size(); ++i) {
+    if (parent[i] == i) roots.emplace_back(smallest[i], static_cast<uint32_t>(i));
+  }
+  std::sort(roots.begin(), roots.end());
+  std::vector<int> component_of(points_.size(), -1);
+  components.resize(roots.size());
+  for (size_t c = 0; c < roots.size(); ++c) component_of[roots[c].second] = static_cast<int>(c);
+  for (size_t i = 0; i < points_.size(); ++i) {
+    components[component_of[root(static_cast<uint32_t>(i))]].push_back(points_[i].index);
+  }
+  for (pcl::Indices& component : components) std::sort(component.begin(), component.end());
+  return components;
 }
 
 template class GridSearch<pcl::PointXYZ>;
