@@ -5,9 +5,12 @@
 
 #include <pcl/kdtree/kdtree_flann.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numeric>
 
 namespace tabletop_shapes {
@@ -177,25 +180,60 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
     }
     return false;
   };
+  // The closest pair of points of clusters a and b (squared distance), as a scan over a's
+  // points with a nearest-neighbour search in b finds it (the first of a's points at the least
+  // distance), without searching for the points of a that cannot come nearer than the best so
+  // far: a's points are visited in the order of their distance to b's bounding box, and the
+  // scan stops where that distance exceeds the best. One k-d tree per cluster, built once.
+  // Bounds are taken slightly below the squared distance to a box, so that float rounding never
+  // skips a point that the tree's distance would tie with.
+  constexpr float kBoundSlack = 0.9999f;
+  std::vector<Eigen::AlignedBox3f> boxes(clusters.size());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    for (const auto& p : *clusters[c]) boxes[c].extend(p.getVector3fMap());
+  }
+  std::vector<std::unique_ptr<pcl::KdTreeFLANN<Point>>> trees(clusters.size());
+  auto closestPair = [&](size_t a, size_t b, float& squared_distance, Eigen::Vector3f& from,
+                         Eigen::Vector3f& to) {
+    if (clusters[a]->empty() || clusters[b]->empty()) return false;
+    std::vector<std::pair<float, int>> order;
+    order.reserve(clusters[a]->size());
+    for (size_t i = 0; i < clusters[a]->size(); ++i) {
+      const float bound = boxes[b].squaredExteriorDistance((*clusters[a])[i].getVector3fMap());
+      order.emplace_back(kBoundSlack * bound, static_cast<int>(i));
+    }
+    std::sort(order.begin(), order.end());
+    if (!trees[b]) {
+      trees[b] = std::make_unique<pcl::KdTreeFLANN<Point>>();
+      trees[b]->setInputCloud(clusters[b]);
+    }
+    float best = std::numeric_limits<float>::max();
+    int best_a = -1, best_b = -1;
+    std::vector<int> nearest(1);
+    std::vector<float> squared(1);
+    for (const auto& [bound, i] : order) {
+      if (bound > best) break;
+      if (trees[b]->nearestKSearch((*clusters[a])[i], 1, nearest, squared) > 0 &&
+          (squared[0] < best || (squared[0] == best && i < best_a))) {
+        best = squared[0], best_a = i, best_b = nearest[0];
+      }
+    }
+    if (best_a < 0) return false;
+    squared_distance = best;
+    from = (*clusters[a])[best_a].getVector3fMap();
+    to = (*clusters[b])[best_b].getVector3fMap();
+    return true;
+  };
   std::vector<int> parent(clusters.size());
   std::iota(parent.begin(), parent.end(), 0);
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
       if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b)) continue;
+      if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.
-      pcl::KdTreeFLANN<Point> tree;
-      tree.setInputCloud(clusters[b]);
-      float shortest = std::numeric_limits<float>::max();
+      float shortest = 0.0f;
       Eigen::Vector3f from = Eigen::Vector3f::Zero(), to = from;
-      std::vector<int> nearest(1);
-      std::vector<float> squared(1);
-      for (const auto& pa : *clusters[a]) {
-        if (tree.nearestKSearch(pa, 1, nearest, squared) > 0 && squared[0] < shortest) {
-          shortest = squared[0];
-          from = pa.getVector3fMap();
-          to = (*clusters[b])[nearest[0]].getVector3fMap();
-        }
-      }
+      if (!closestPair(a, b, shortest, from, to)) continue;
       const float gap = std::sqrt(shortest);
       if (gap > kMaxGap) continue;
       // Samples every kGapStep at least kGapEnd from both ends; the midpoint of a shorter gap.

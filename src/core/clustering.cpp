@@ -28,18 +28,21 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
   }
   if (input->empty()) return clusters;
 
-  // Unsorted radius results: the clustering does not need them ordered by distance. A grid
-  // with cells of the tolerance finds each point's neighbours in 27 cells.
-  auto tree = std::make_shared<GridSearch<Point>>(params.tolerance, false);
-  tree->setInputCloud(input);
+  // The connected components of the points closer than the tolerance, from a grid with cells
+  // of the tolerance (each point's neighbours lie in 27 cells): the clusters of
+  // pcl::EuclideanClusterExtraction, filtered and ordered (largest first) as it does.
+  GridSearch<Point> grid(params.tolerance, false);
+  grid.setInputCloud(input);
+  const size_t min_size = static_cast<size_t>(std::max(1, params.min_size));
+  const size_t max_size = static_cast<size_t>(std::max(1, params.max_size));
   std::vector<pcl::PointIndices> cluster_indices;
-  pcl::EuclideanClusterExtraction<Point> extraction;
-  extraction.setClusterTolerance(params.tolerance);
-  extraction.setMinClusterSize(std::max(1, params.min_size));
-  extraction.setMaxClusterSize(std::max(1, params.max_size));
-  extraction.setSearchMethod(tree);
-  extraction.setInputCloud(input);
-  extraction.extract(cluster_indices);
+  for (pcl::Indices& component : grid.connectedComponents(params.tolerance)) {
+    if (component.size() < min_size || component.size() > max_size) continue;
+    cluster_indices.emplace_back();
+    cluster_indices.back().header = input->header;
+    cluster_indices.back().indices = std::move(component);
+  }
+  std::sort(cluster_indices.rbegin(), cluster_indices.rend(), pcl::comparePointClusters);
 
   // Clusters are split independently: one per core at a time, largest first (PCL's order).
   std::vector<std::vector<CloudPtr>> parts(cluster_indices.size());

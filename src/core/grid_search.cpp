@@ -2,11 +2,14 @@
 
 #include "tabletop_shapes/core/voxel_key.h"
 
+#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <numeric>
 
 namespace tabletop_shapes {
 namespace {
@@ -220,6 +223,7 @@ void GridSearch<PointT>::forEachNearestK(
   const size_t wanted = static_cast<size_t>(k);
   std::vector<float> xs, ys, zs, squared, nearest;
   pcl::Indices fallback_indices;
+  std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   for (size_t begin = 0; begin < points_.size();) {
     const Entry& first = points_[begin];
     const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
@@ -235,33 +239,104 @@ void GridSearch<PointT>::forEachNearestK(
     }
     for (size_t i = begin; i < end; ++i) {
       const Entry& q = points_[i];
-      squared.resize(xs.size());
-      for (size_t j = 0; j < xs.size(); ++j) {
-        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-        squared[j] = dx * dx + dy * dy + dz * dz;
-      }
       // The block holds every point closer than 1 + inset cells (inset: the distance from q
       // to its cell's nearest face); beyond that the k-th neighbour needs the general search.
+      // Only the points within that distance can be among the k nearest found here: the
+      // others are not kept (half of the block on a surface), so the selection below is
+      // cheaper and finds the same k distances.
       const float fx = q.x * inv_cell_ - cx, fy = q.y * inv_cell_ - cy, fz = q.z * inv_cell_ - cz;
       const float inset = std::min({fx, 1 - fx, fy, 1 - fy, fz, 1 - fz});
       const float covered = (1.0f + std::max(inset, 0.0f)) * cell_size_;
-      bool complete = squared.size() >= wanted;
+      const float covered_squared = covered * covered;
+      squared.resize(xs.size());
+      size_t kept = 0;
+      for (size_t j = 0; j < xs.size(); ++j) {
+        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+        const float d = dx * dx + dy * dy + dz * dz;
+        squared[kept] = d;
+        kept += d <= covered_squared;
+      }
+      squared.resize(kept);
+      const bool complete = kept >= wanted;
       if (complete) {
         std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
-        complete = squared[wanted - 1] <= covered * covered;
       }
       if (complete) {
         nearest.assign(squared.begin(), squared.begin() + wanted);
         std::sort(nearest.begin(), nearest.end());
       } else {
+        // A k-d tree, not the grid's growing rings: the points that get here are the sparse
+        // ones (flying pixels, edges), whose rings run through many empty cells before k
+        // points turn up. It finds the same distances (FLANN sums the squares in the same
+        // order) and is built at the first such point.
+        if (!fallback) {
+          fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
+          fallback->setInputCloud(this->input_, this->indices_);
+        }
         PointT point;
         point.x = q.x, point.y = q.y, point.z = q.z;
-        nearestKSearch(point, k, fallback_indices, nearest);
+        fallback->nearestKSearch(point, k, fallback_indices, nearest);
       }
       visit(q.index, nearest);
     }
     begin = end;
   }
+}
+
+template <typename PointT>
+std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius) const {
+  std::vector<pcl::Indices> components;
+  if (points_.empty() || !(radius >= 0.0)) return components;
+  const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
+  const int reach = static_cast<int>(std::ceil(radius * inv_cell_));
+  // Union-find over positions in points_; a root is the smallest position of its set.
+  std::vector<uint32_t> parent(points_.size());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto root = [&](uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (size_t begin = 0; begin < points_.size();) {
+    const Entry& first = points_[begin];
+    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
+    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
+    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
+    const size_t end = find(keyOf(cx, cy, cz))->end;
+    for (int ring = 0; ring <= reach; ++ring) {
+      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+        const uint32_t j = static_cast<uint32_t>(&e - points_.data());
+        for (size_t i = begin; i < end; ++i) {
+          if (j <= i) continue;  // each pair once
+          const Entry& q = points_[i];
+          const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
+          if (dx * dx + dy * dy + dz * dz < radius_sq) {
+            const uint32_t a = root(static_cast<uint32_t>(i)), b = root(j);
+            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+          }
+        }
+      });
+    }
+    begin = end;
+  }
+  // Components numbered by their smallest input index.
+  std::vector<int> smallest(points_.size(), std::numeric_limits<int>::max());
+  for (size_t i = 0; i < points_.size(); ++i) {
+    int& s = smallest[root(static_cast<uint32_t>(i))];
+    s = std::min(s, points_[i].index);
+  }
+  std::vector<std::pair<int, uint32_t>> roots;  // (smallest input index, root)
+  for (size_t i = 0; i < points_.size(); ++i) {
+    if (parent[i] == i) roots.emplace_back(smallest[i], static_cast<uint32_t>(i));
+  }
+  std::sort(roots.begin(), roots.end());
+  std::vector<int> component_of(points_.size(), -1);
+  components.resize(roots.size());
+  for (size_t c = 0; c < roots.size(); ++c) component_of[roots[c].second] = static_cast<int>(c);
+  for (size_t i = 0; i < points_.size(); ++i) {
+    components[component_of[root(static_cast<uint32_t>(i))]].push_back(points_[i].index);
+  }
+  for (pcl::Indices& component : components) std::sort(component.begin(), component.end());
+  return components;
 }
 
 template class GridSearch<pcl::PointXYZ>;

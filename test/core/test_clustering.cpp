@@ -4,6 +4,8 @@
 #include "synthetic.h"
 
 #include <gtest/gtest.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
 
 #include <limits>
 #include <random>
@@ -54,6 +56,50 @@ TEST(Clustering, SeparatesObjectsAndSortsLargestFirst) {
     for (const auto& p : *clusters[i]) a += p.getVector3fMap();
     for (const auto& p : *expected[i]) b += p.getVector3fMap();
     EXPECT_LT((a / clusters[i]->size() - b / expected[i]->size()).norm(), 1e-4f);
+  }
+}
+
+TEST(Clustering, SameClustersAsPclEuclideanClusterExtraction) {
+  // Blobs of random points, some a little closer than the tolerance to each other, some a
+  // little farther, plus lone points: PCL's extraction with a k-d tree is the reference.
+  Cloud scene;
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int blob = 0; blob < 12; ++blob) {
+    const Eigen::Vector3f centre(0.045f * blob, 0.02f * (blob % 3), 0.9f);
+    const int size = 20 + 15 * (blob % 4);
+    for (int i = 0; i < size; ++i) {
+      const Eigen::Vector3f offset(0.02f * unit(rng), 0.02f * unit(rng), 0.02f * unit(rng));
+      const Eigen::Vector3f p = centre + offset;
+      scene.push_back(Point(p.x(), p.y(), p.z()));
+    }
+  }
+  for (int i = 0; i < 30; ++i) scene.push_back(Point(unit(rng), unit(rng), 0.5f + unit(rng)));
+  scene.is_dense = true;
+  ClusteringParams params;
+  params.tolerance = 0.01f;
+  params.min_size = 3;
+  params.max_size = 70;  // the largest blobs (65 points) stay; merged pairs of them do not
+  const auto input = std::make_shared<const Cloud>(scene);
+
+  std::vector<pcl::PointIndices> expected;
+  pcl::EuclideanClusterExtraction<Point> extraction;
+  extraction.setClusterTolerance(params.tolerance);
+  extraction.setMinClusterSize(params.min_size);
+  extraction.setMaxClusterSize(params.max_size);
+  extraction.setSearchMethod(std::make_shared<pcl::search::KdTree<Point>>());
+  extraction.setInputCloud(input);
+  extraction.extract(expected);
+  ASSERT_GE(expected.size(), 4u);  // the scene does test something
+
+  const std::vector<CloudPtr> clusters = extractClusters(input, params);
+  ASSERT_EQ(clusters.size(), expected.size());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    ASSERT_EQ(clusters[c]->size(), expected[c].indices.size()) << "cluster " << c;
+    for (size_t i = 0; i < clusters[c]->size(); ++i) {
+      EXPECT_EQ((*clusters[c])[i].getVector3fMap(), scene[expected[c].indices[i]].getVector3fMap())
+          << "cluster " << c << " point " << i;
+    }
   }
 }
 

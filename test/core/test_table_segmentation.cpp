@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
+#include <pcl/filters/statistical_outlier_removal.h>
 #include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
@@ -177,6 +178,41 @@ SyntheticScene makeScene(bool with_table, const std::vector<BoxOnTable>& boxes) 
 SyntheticScene makeScene(bool with_table, bool with_box) {
   return makeScene(with_table, with_box ? std::vector<BoxOnTable>{{kBoxSize, kBoxCentre}}
                                         : std::vector<BoxOnTable>{});
+}
+
+TEST(StatisticalOutliers, KeepsThePointsPclKeeps) {
+  // A dense 5 mm surface, a sparse cloud of flying pixels around it (their k nearest lie
+  // beyond the search grid's block): pcl::StatisticalOutlierRemoval is the reference.
+  auto cloud = std::make_shared<Cloud>();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 40; ++j) {
+      cloud->push_back(Point(0.005f * i, 0.005f * j, 1.0f + 0.001f * unit(rng)));
+    }
+  }
+  for (int i = 0; i < 150; ++i) {
+    cloud->push_back(
+        Point(0.4f * unit(rng) - 0.05f, 0.3f * unit(rng) - 0.05f, 0.9f + 0.2f * unit(rng)));
+  }
+  cloud->is_dense = true;
+  constexpr int k = 50;
+  constexpr float alpha = 1.0f;
+
+  Cloud expected;
+  pcl::StatisticalOutlierRemoval<Point> pcl_removal;
+  pcl_removal.setMeanK(k);
+  pcl_removal.setStddevMulThresh(alpha);
+  pcl_removal.setInputCloud(cloud);
+  pcl_removal.filter(expected);
+  ASSERT_LT(expected.size(), cloud->size() - 20);  // the test removes something
+
+  Cloud kept;
+  removeStatisticalOutliers(cloud, k, alpha, kept);
+  ASSERT_EQ(kept.size(), expected.size());
+  for (size_t i = 0; i < kept.size(); ++i) {
+    EXPECT_EQ(kept[i].getVector3fMap(), expected[i].getVector3fMap()) << "point " << i;
+  }
 }
 
 TEST(TableSegmenter, ChoosesTheTableNotTheBiggerFloor) {

@@ -46,6 +46,13 @@ class GridSearch : public pcl::search::Search<PointT> {
   void forEachNearestK(int k,
                        const std::function<void(int, const std::vector<float>&)>& visit) const;
 
+  // The connected components of the input's points linked when closer than `radius` (squared
+  // distance < radius^2, as radiusSearch): the input indices of each, ascending, components in
+  // the order of their smallest index, as pcl::extractEuclideanClusters finds them (before it
+  // filters and sorts them by size). One pass over each point's neighbouring cells, without
+  // the result vectors of one radius search per point.
+  std::vector<pcl::Indices> connectedComponents(double radius) const;
+
  private:
   struct Cell {
     uint64_t key;
