@@ -155,8 +155,9 @@ constexpr float kAlong = 0.3f;
 // its bottom the table).
 // A cut object's points end at the cut: there the round solid may go on (a cut box's flat face
 // still bounds it on the other side).
+// `rim_band`: the round fit's side wall ends this far below its top (CylinderParams::top_margin).
 std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& table,
-                      float tolerance, const Cuts& cuts) {
+                      float tolerance, float rim_band, const Cuts& cuts) {
   const Eigen::Vector3f up = table.normal.normalized();
   const Eigen::Vector2f heights = extentAlong(cluster, up);
   const float table_height = -table.d / table.normal.norm();
@@ -216,7 +217,16 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
            formatMetres(2.0f * seen_radius) + " m in view), its points are " +
            formatMetres(width[1] - width[0]) + " m wide across the line of sight";
   }
-  const float near_side = forward.dot(fit.center) - radius;
+  // Its near side where the wall was measured: a cone's radius in the rim band above is
+  // extrapolated, and a curved wall bends away from the straight taper there (on real OSD bowls
+  // 17 cm across the cone reached 7-8 mm in front of the near rim).
+  const float measured_top = std::max(0.0f, fit.height - rim_band) / std::max(fit.height, 1e-6f);
+  const float measured_radius =
+      fit.type == ShapeType::Cone
+          ? std::max(fit.radius_bottom,
+                     fit.radius_bottom + measured_top * (fit.radius_top - fit.radius_bottom))
+          : radius;
+  const float near_side = forward.dot(fit.center) - measured_radius;
   const float nearest = extentAlong(cluster, forward)[0];
   if (near_side < nearest - tolerance) {
     return name + " near side " + formatMetres(nearest - near_side) + " m in front of its points";
@@ -225,9 +235,9 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
 }
 
 ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance,
-                         const Cuts& cuts) {
+                         float rim_band, const Cuts& cuts) {
   if (!fit.ok) return fit;
-  const std::string why = overreach(fit, cluster, table, tolerance, cuts);
+  const std::string why = overreach(fit, cluster, table, tolerance, rim_band, cuts);
   if (!why.empty()) {
     fit.ok = false;
     fit.reason = why + " (max_overreach " + formatMetres(tolerance) + " m)";
@@ -292,7 +302,8 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
                                     ? fitCube(normals, table, params.cube)
                                     : fitRoundObject(normals, table, params.cylinder, params.cone),
                                 normals.size());
-    fit = rejectOverreach(fit, *cluster, table, params.max_overreach, cuts);
+    fit = rejectOverreach(fit, *cluster, table, params.max_overreach, params.cylinder.top_margin,
+                          cuts);
     return rejectUnexplained(fit, normals, *cluster, table);
   };
   const ShapeType first =

@@ -195,6 +195,33 @@ TEST(ShapeEstimator, NoSolidIsWiderThanItsPointsAndNoModelLeftGivesTheBoundingBo
   EXPECT_NEAR(fit.dimensions.z(), 0.175f, 0.005f);
 }
 
+TEST(ShapeEstimator, BowlWithoutItsNearRimIsStillACone) {
+  // Real OSD bowls (17 cm across) lost their near rim band (a rounded lip seen at grazing
+  // incidence): the taper, extrapolated up through the band where the side wall is not fitted
+  // (cylinder.top_margin), put the cone's near side 7-8 mm in front of the points, and the bowls
+  // were reported as bounding boxes. The near side counts where the wall was measured.
+  const float r_bottom = 0.045f, r_top = 0.085f, height = 0.06f;
+  const float band = CylinderParams().top_margin;
+  for (unsigned seed : {1u, 2u}) {
+    synthetic::Sampler sampler = synthetic::voxelGridSampler();
+    sampler.seed = seed;
+    CloudPtr bowl = synthetic::bowl(r_bottom, r_top, height, 0.004f, {0.0f, 0.0f}, sampler);
+    auto cloud = std::make_shared<Cloud>();
+    for (const auto& p : bowl->points) {
+      if (!(p.z > height - band && p.y < 0.0f)) cloud->push_back(p);  // the camera is at -y
+    }
+    const CameraView view =
+        inOpticalFrame(cloud, sampler.camera, Eigen::Vector3f(0, 0, height / 2));
+    const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table);
+    printFit("bowl without its near rim", fit);
+    ASSERT_TRUE(fit.ok) << fit.reason;
+    EXPECT_FALSE(fit.bounding_box) << fit.reason;
+    ASSERT_EQ(fit.type, ShapeType::Cone) << fit.reason;
+    EXPECT_NEAR(fit.radius_top, r_top, 0.005f);
+    EXPECT_NEAR(fit.radius_bottom, r_bottom, 0.005f);
+  }
+}
+
 TEST(ShapeEstimator, BoundingBoxOfABoxIsTheBox) {
   const Eigen::Vector3f size(0.175f, 0.12f, 0.10f);
   synthetic::Sampler sampler = synthetic::voxelGridSampler();

@@ -23,7 +23,9 @@ ShapeFit fitCylinder(const NormalCloud& object, const Plane& table, const Cylind
 // Radius linear in height above the table. Always returns a Cone (ok when the fit worked).
 ShapeFit fitCone(const NormalCloud& object, const Plane& table, const CylinderParams& cylinder,
                  const ConeParams& params);
-// A round object: a Cone when the slope is significant given the noise, else a Cylinder.
+// A round object: a Cone when its taper is significant given the noise, measurable (>= 4 mm) and,
+// narrowing upwards, straight; else a Cylinder (through the lower half of the side wall when it
+// narrows upwards in steps, as a bottle's body, shoulder and neck do).
 ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
                         const CylinderParams& cylinder, const ConeParams& cone);
 
