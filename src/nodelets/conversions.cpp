@@ -121,6 +121,33 @@ Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
   return msg;
 }
 
+View toViewMsg(const ViewBounds& view, const std_msgs::Header& header) {
+  View msg;
+  msg.header = header;
+  msg.known = view.known;
+  msg.min_tan_x = view.min_tan_x;
+  msg.max_tan_x = view.max_tan_x;
+  msg.min_tan_y = view.min_tan_y;
+  msg.max_tan_y = view.max_tan_y;
+  msg.pixel_tan = view.pixel_tan;
+  msg.min_depth = view.min_depth;
+  msg.point_spacing = view.point_spacing;
+  return msg;
+}
+
+ViewBounds viewFromMsg(const View& msg) {
+  ViewBounds view;
+  view.known = msg.known;
+  view.min_tan_x = msg.min_tan_x;
+  view.max_tan_x = msg.max_tan_x;
+  view.min_tan_y = msg.min_tan_y;
+  view.max_tan_y = msg.max_tan_y;
+  view.pixel_tan = msg.pixel_tan;
+  view.min_depth = msg.min_depth;
+  view.point_spacing = msg.point_spacing;
+  return view;
+}
+
 Objects skippedFrameObjects(const std_msgs::Header& header, const std::string& reason) {
   Objects objects;
   objects.header = header;

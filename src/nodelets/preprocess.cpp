@@ -4,6 +4,9 @@
 //             such as OpenNI2Driver's, arrives without a copy: see ros/cloud_input.h)
 // Publishes:  preprocessed (pcl::PointCloud<pcl::PointXYZ>, shared with the next nodelet;
 //             header.seq numbers the frames, so that the next stage counts the ones it drops)
+//             view (tabletop_shapes/View, same stamp): the bounds of the input's valid pixels,
+//             which ShapeEstimation needs to flag objects cut by the image border (the
+//             voxel grid leaves an unorganised cloud)
 //             objects (tabletop_shapes/Objects) for a frame skipped here, with the reason
 // Parameters: cfg/Preprocess.cfg (dynamic_reconfigure); ~queue_size (int, 1);
 //             ~max_points (int, 4000000): larger clouds are skipped with a warning.
@@ -46,6 +49,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
       params_ = params.preprocess;
     });
     publisher_ = node.advertise<Cloud>("preprocessed", 1);
+    view_publisher_ = node.advertise<View>("view", 5);
     skipped_publisher_ = node.advertise<Objects>("objects", 5);
     const int queue_size = private_node.param("queue_size", 1);
     const int max_points = private_node.param("max_points", static_cast<int>(kDefaultMaxPoints));
@@ -86,6 +90,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
       preprocessor_.setParams(params_);  // a reconfigured value applies from this frame on
     }
     auto output = boost::make_shared<Cloud>();
+    ViewBounds view = viewBoundsOf(*input);  // before the voxel grid: it needs the image layout
+    view.point_spacing = preprocessor_.params().leaf_size;
     preprocessor_.apply(*input, *output);
     const size_t points_out = output->size();
     if (points_out == 0) {  // still published: every frame gets its (empty) answer downstream
@@ -96,6 +102,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
       monitor_->frameWithoutResult(reason, {bridge::Problem::Level::Warn, reason, {}});
     }
     output->header.seq = ++published_;
+    // The view first: it reaches ShapeEstimation before the frame's clusters do.
+    view_publisher_.publish(bridge::toViewMsg(view, pcl_conversions::fromPCL(output->header)));
     boost::shared_ptr<const Cloud> shared = output;
     bridge::markPublished(shared);
     publisher_.publish(shared);
@@ -110,7 +118,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
   Preprocessor preprocessor_;  // keeps its buffers between frames
   uint64_t max_points_ = kDefaultMaxPoints;
   uint32_t published_ = 0;  // frames published: the seq of the next stage's input
-  ros::Publisher publisher_, skipped_publisher_;
+  ros::Publisher publisher_, view_publisher_, skipped_publisher_;
   ros::Subscriber subscriber_;
 };
 

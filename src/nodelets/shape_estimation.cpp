@@ -1,6 +1,9 @@
 // tabletop_shapes/ShapeEstimation (paper 3): a box, cylinder or truncated cone per cluster.
 // Subscribes: table (tabletop_shapes/Table) and clusters (pcl::PointCloud<pcl::PointXYZL>),
-//   paired by their identical stamps (exact time).
+//   paired by their identical stamps (exact time); view (tabletop_shapes/View) from
+//   Preprocess, taken by the same stamp: objects cut by the image border come out `truncated`
+//   with their lower-bound extents flagged (a frame without its view: none is flagged, and a
+//   WARN on /diagnostics says so).
 // Publishes, once per frame (also when nothing was found):
 //   objects (tabletop_shapes/Objects); `reason` says why there is no result (no table, no
 //     transform to output_frame; then in the cloud's frame). Preprocess and TableSegmentation
@@ -29,6 +32,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <deque>
 #include <memory>
 #include <mutex>
 
@@ -48,7 +52,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
     }
-    const std::vector<std::string> stages{"normals", "predictor", "cube", "cylinder", "cone", "shapes"};
+    const std::vector<std::string> stages{"normals",  "predictor", "cube",
+                                          "cylinder", "cone",      "shapes"};
     bridge::seedCoreDefaults(private_node, stages);
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ShapeEstimationConfig>>(
         reconfigure_mutex_, private_node);
@@ -70,6 +75,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     cones_publisher_ = node.advertise<Cone>("cones", 10);
 
     const int queue_size = private_node.param("queue_size", 5);
+    view_subscriber_ = node.subscribe("view", kViewsKept, &ShapeEstimationNodelet::onView, this);
     table_subscriber_.subscribe(node, "table", queue_size);
     clusters_subscriber_.subscribe(node, "clusters", queue_size);
     monitor_->expectInput<Table>(table_subscriber_.getSubscriber());
@@ -78,6 +84,27 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
         table_subscriber_, clusters_subscriber_, 2 * queue_size);
     synchronizer_->registerCallback(boost::bind(&ShapeEstimationNodelet::onFrame, this,
                                                 boost::placeholders::_1, boost::placeholders::_2));
+  }
+
+  // Views arrive before their frame's clusters (Preprocess publishes the view first, and the
+  // frame passes two stages after it): kept by stamp until the frame comes.
+  void onView(const ViewConstPtr& view) {
+    std::lock_guard<std::mutex> lock(views_mutex_);
+    views_.push_back(view);
+    while (views_.size() > kViewsKept) views_.pop_front();
+  }
+
+  // The view of the frame stamped `stamp`; false when it did not come (then `view` stays
+  // unknown: nothing is flagged).
+  bool viewOf(const ros::Time& stamp, ViewBounds& view) {
+    std::lock_guard<std::mutex> lock(views_mutex_);
+    for (auto it = views_.rbegin(); it != views_.rend(); ++it) {
+      if ((*it)->header.stamp == stamp) {
+        view = bridge::viewFromMsg(**it);
+        return true;
+      }
+    }
+    return false;
   }
 
   void onFrame(const TableConstPtr& table, const boost::shared_ptr<const LabeledCloud>& clusters) {
@@ -96,7 +123,14 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     if (objects.table_found) {
       const std::vector<CloudPtr> parts = splitClusters(*clusters);
       const std::vector<Plane> supports = supportPlanes(parts, bridge::planeFromMsg(*table));
-      for (const ShapeFit& fit : estimator_.estimateAll(parts, supports)) {
+      ViewBounds view;  // unknown for an unorganised input cloud: nothing is cut then
+      const bool view_came = viewOf(objects.header.stamp, view);
+      monitor_->setWarning("view", view_came ? ""
+                                             : "no view (image bounds) of the frame on " +
+                                                   view_subscriber_.getTopic() +
+                                                   ": objects cut by the image border are not "
+                                                   "flagged truncated");
+      for (const ShapeFit& fit : estimator_.estimateAll(parts, supports, &view)) {
         bridge::appendObject(fit, objects.header, objects);
       }
     }
@@ -155,7 +189,13 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     }
   }
 
+  // Views kept for the frames in flight (a few at 30 Hz; the stages between take ~0.1-0.3 s).
+  static constexpr size_t kViewsKept = 30;
+
   std::unique_ptr<bridge::StageMonitor> monitor_;
+  std::mutex views_mutex_;
+  std::deque<ViewConstPtr> views_;
+  ros::Subscriber view_subscriber_;
   std::string output_frame_;
   ros::Duration tf_timeout_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;

@@ -1,9 +1,11 @@
-// Writes a small rosbag for replay tests and demos, either from rendered Kinect-like scenes
-// (tabletop_shapes_sim) or from a PCD file:
+// Writes a small rosbag for replay tests and demos, either from rendered scenes (the paper's
+// objects, random ones, or everyday objects on a Kinect v1 or RealSense D435)
+// (tabletop_shapes_sim), or from a PCD file:
 //   <topic>        sensor_msgs/PointCloud2, organised, x y z (+ rgb for rendered scenes)
 //   /ground_truth  tabletop_shapes/Objects with the same stamp: the true solids in the cloud's
-//                  frame (rendered), or one UnfittedCluster per labelled object (OSD PCD
-//                  files: labels 20-29 = object 0, 30-39 = object 1, ...)
+//                  frame (rendered; `truncated` when some of the object's pixels lie on the
+//                  image's outer rows or columns), or one UnfittedCluster per labelled object (OSD
+//                  PCD files: labels 20-29 = object 0, 30-39 = object 1, ...)
 //   /tf_static     (rendered only, latched) <up_frame> -> <frame_id>: the world frame, +z up
 // Stamps are whole microseconds (what PCL headers keep), so pairing by stamp is exact.
 #include "tabletop_shapes/ros/conversions.h"
@@ -29,7 +31,8 @@ namespace sim = tabletop_shapes::sim;
 namespace bridge = tabletop_shapes::bridge;
 
 const char* kUsage =
-    "usage: write_scene_bag --out BAG [--scene paper|random] [--seed N] [--frames N]\n"
+    "usage: write_scene_bag --out BAG [--scene paper|random|everyday] [--sensor kinect|realsense]\n"
+    "         [--seed N] [--frames N]\n"
     "         [--rate HZ] [--qvga] [--distance M] [--tilt DEG] [--yaw DEG] [--no-tf]\n"
     "         [--topic T] [--frame-id F] [--up-frame U] [--pcd FILE]\n"
     "  Rendered scenes (default: the paper's four objects) get a new noise seed per frame;\n"
@@ -43,6 +46,7 @@ struct Options {
   uint32_t seed = 1;
   double rate = 2.0, distance = NAN, tilt = NAN, yaw = NAN;
   bool qvga = false, tf = true;
+  sim::SensorModel sensor = sim::SensorModel::KinectV1;  // of the everyday scene
 };
 
 bool parse(int argc, char** argv, Options& o, std::string& error) {
@@ -64,8 +68,11 @@ bool parse(int argc, char** argv, Options& o, std::string& error) {
     if (arg == "--out")
       ok = text(o.out);
     else if (arg == "--scene")
-      ok = text(o.scene) && (o.scene == "paper" || o.scene == "random");
-    else if (arg == "--pcd")
+      ok = text(o.scene) && (o.scene == "paper" || o.scene == "random" || o.scene == "everyday");
+    else if (arg == "--sensor") {
+      std::string name;
+      ok = text(name) && sim::parseSensorName(name, o.sensor);
+    } else if (arg == "--pcd")
       ok = text(o.pcd);
     else if (arg == "--topic")
       ok = text(o.topic);
@@ -131,6 +138,7 @@ tabletop_shapes::Objects groundTruth(const sim::RenderedScene& scene,
     fit.radius_top = truth.radius_top;
     fit.height = truth.height;
     fit.points = truth.visible_pixels;
+    fit.truncated = truth.at_image_border;  // which extents are lower bounds is the fit's matter
     bridge::appendObject(fit, header, objects);
   }
   return objects;
@@ -214,8 +222,9 @@ int main(int argc, char** argv) {
   std::mt19937 rng(o.seed);
   sim::SceneSpec spec;
   if (o.pcd.empty()) {
-    spec = o.scene == "paper" ? sim::paperScene(sim::CameraPlacement{1.0f, 40.0f, 90.0f})
-                              : sim::randomScene(rng);
+    spec = o.scene == "paper"      ? sim::paperScene(sim::CameraPlacement{1.0f, 40.0f, 90.0f})
+           : o.scene == "everyday" ? sim::everydayScene(o.seed, o.sensor)
+                                   : sim::randomScene(rng);
     if (!std::isnan(o.distance)) spec.placement.distance = static_cast<float>(o.distance);
     if (!std::isnan(o.tilt)) spec.placement.tilt_deg = static_cast<float>(o.tilt);
     if (!std::isnan(o.yaw)) spec.placement.yaw_deg = static_cast<float>(o.yaw);

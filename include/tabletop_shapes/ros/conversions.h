@@ -10,6 +10,7 @@
 #include <std_msgs/Header.h>
 #include <tabletop_shapes/Objects.h>
 #include <tabletop_shapes/Table.h>
+#include <tabletop_shapes/View.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <string>
@@ -22,6 +23,11 @@ namespace bridge {
 Table toTableMsg(const TableResult& table, const std_msgs::Header& header);
 inline bool tableFound(const Table& table) { return table.inliers > 0; }
 Plane planeFromMsg(const Table& table);
+
+// The view of a frame (core ViewBounds) as Preprocess publishes it, and back, so that
+// ShapeEstimation flags objects cut by the image border as the core Pipeline does.
+View toViewMsg(const ViewBounds& view, const std_msgs::Header& header);
+ViewBounds viewFromMsg(const View& msg);
 
 // The objects message of a frame a stage skipped: no table, no objects, the reason.
 Objects skippedFrameObjects(const std_msgs::Header& header, const std::string& reason);
