@@ -227,7 +227,9 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   // Depth noise smears a vertical face sideways, more with range; the lower part of a stack
   // needs split_min_points, a tenth of them beyond the smear is plenty of evidence.
   const float range = centroid.norm();
-  const float smear = std::max(0.01f, 2.0f * params.split_depth_step * range * range);
+  // A lower object may stick out from under a wider one by only a centimetre (a box lying
+  // across two): the smear's floor stays below that.
+  const float smear = std::max(0.005f, 2.0f * params.split_depth_step * range * range);
   const int needed = std::max(10, params.split_min_points / 10);
   int beside = 0;
   for (const auto& p : cluster) {
