@@ -3,18 +3,22 @@
 // noisy patch does not become an object.
 #include "tabletop_shapes/core/cluster_split.h"
 
+#include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_search.h"
 
 #include <pcl/segmentation/lccp_segmentation.h>
 #include <pcl/segmentation/supervoxel_clustering.h>
 
 #include <algorithm>
+#include <limits>
 #include <map>
 
 namespace tabletop_shapes {
 namespace {
 
 constexpr float kVoteSearchCell = 0.01f;  // GridSearch cell of the neighbour votes [m]
+// Parts whose tops lie within this of each other are one object (see mergeUnseparatedParts).
+constexpr float kStackStep = 0.02f;  // [m]
 
 // One supervoxel adjacency between two LCCP parts, and whether LCCP found it convex.
 struct Seam {
@@ -169,7 +173,6 @@ void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tre
 // (rim) and are joined again. Parts that touch without any supervoxel seam between them were
 // cut apart by a gap in the samples (an edge lost to the camera's near range, depth steps),
 // not by a seam. (Touching objects of equal height therefore stay one cluster.)
-constexpr float kStackStep = 0.02f;  // [m]
 
 void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point>& tree,
                            const Plane& table, ConvexParts& parts) {
@@ -201,11 +204,49 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
 
 }  // namespace
 
+bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params) {
+  if (cluster.empty()) return false;
+  float top = -std::numeric_limits<float>::infinity();
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : cluster) {
+    top = std::max(top, table.signedDistance(p.getVector3fMap()));
+    centroid += p.getVector3fMap();
+  }
+  centroid /= static_cast<float>(cluster.size());
+  const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
+  auto onTable = [&](const Point& p) {
+    return Eigen::Vector2f(u.dot(p.getVector3fMap()), v.dot(p.getVector3fMap()));
+  };
+  std::vector<Eigen::Vector2f> top_band;
+  for (const auto& p : cluster) {
+    if (table.signedDistance(p.getVector3fMap()) >= top - kStackStep)
+      top_band.push_back(onTable(p));
+  }
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(top_band));
+  if (hull.size() < 3) return true;  // a ridge or a spike on top: no footprint to judge by
+  // Depth noise smears a vertical face sideways, more with range; the lower part of a stack
+  // needs split_min_points, a tenth of them beyond the smear is plenty of evidence.
+  const float range = centroid.norm();
+  // A lower object may stick out from under a wider one by only a centimetre (a box lying
+  // across two): the smear's floor stays below that.
+  const float smear = std::max(0.005f, 2.0f * params.split_depth_step * range * range);
+  const int needed = std::max(10, params.split_min_points / 10);
+  int beside = 0;
+  for (const auto& p : cluster) {
+    if (table.signedDistance(p.getVector3fMap()) < top - kStackStep &&
+        insideDistance(hull, onTable(p)) < -smear && ++beside >= needed) {
+      return true;
+    }
+  }
+  return false;
+}
+
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params) {
   const int min_points = std::max(1, params.split_min_points);
   if (!cluster || !(params.split_concavity_deg > 0.0f) || !(params.split_patch_size > 0.0f) ||
-      static_cast<int>(cluster->size()) < 2 * min_points) {
+      static_cast<int>(cluster->size()) < 2 * min_points ||
+      !mayHoldAStack(*cluster, table, params)) {
     return {cluster};
   }
   ConvexParts convex_parts = convexParts(cluster, params);

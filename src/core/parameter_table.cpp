@@ -52,6 +52,11 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
        "object points start this far above the table [m]");
   real("table", "max_height", table.max_height, 0.01, 3.0,
        "object points end this far above the table [m]");
+  real("table", "camera_height", table.camera_height, 0.0, 5.0,
+       "the camera's height above the table top along up, when known [m]: the support plane is "
+       "the plane at that height; 0: unknown, the highest plane with objects on it");
+  real("table", "camera_height_tolerance", table.camera_height_tolerance, 0.005, 0.5,
+       "how far the support plane may lie from camera_height [m]");
   integer("table", "outlier_k", table.outlier_k, 0, 500,
           "statistical outlier removal: neighbours; 0 disables it (§2.4)");
   real("table", "outlier_alpha", table.outlier_alpha, -5.0, 20.0,
@@ -150,6 +155,10 @@ bool validateParams(const PipelineParams& params, std::string& error) {
           params.clustering.max_size, true);
   ordered("table.min_height", params.table.min_height, "table.max_height", params.table.max_height,
           false);
+  if (params.table.camera_height > 0) {  // 0: unknown
+    ordered("table.camera_height_tolerance", params.table.camera_height_tolerance,
+            "table.camera_height", params.table.camera_height, false);
+  }
   error = why.str();
   return error.empty();
 }

@@ -401,14 +401,22 @@ float surfaceContrast(const Cloud& cloud, const Candidate& candidate, float thre
 // Up to max_planes planes satisfying the constraint, each with >= min_inliers points; the
 // inliers of each are removed before the next is searched. A plane whose refined normal leaves
 // the constraint, or whose inliers are scattered points rather than a surface, is no candidate:
-// `refused`, when given, receives why (for the reason of "no table").
+// `refused`, when given, receives why (for the reason of "no table"). `among`, when given,
+// limits the search to those points (sorted indices).
 std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
                                   const NormalConstraint& constraint,
-                                  std::vector<std::string>* refused = nullptr) {
+                                  std::vector<std::string>* refused = nullptr,
+                                  const std::vector<int>* among = nullptr) {
   std::vector<int> remaining;
-  remaining.reserve(cloud.size());
+  remaining.reserve(among ? among->size() : cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
     if (cloud[i].getVector3fMap().allFinite()) remaining.push_back(static_cast<int>(i));
+  }
+  if (among) {
+    std::vector<int> kept;
+    std::set_intersection(remaining.begin(), remaining.end(), among->begin(), among->end(),
+                          std::back_inserter(kept));
+    remaining.swap(kept);
   }
   std::mt19937 rng(42);  // deterministic: the same frame gives the same table
   std::vector<Candidate> candidates;
@@ -612,6 +620,45 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
   return chosen;
 }
 
+// The camera's height above a candidate (the viewpoint is the cloud's sensor origin).
+float cameraHeightAbove(const Cloud& cloud, const Candidate& candidate) {
+  return candidate.plane.signedDistance(cloud.sensor_origin_.head<3>());
+}
+
+// With a known camera height: the candidate with the most inliers within the tolerance of it;
+// -1 when none is.
+int supportAtKnownHeight(const Cloud& cloud, const std::vector<Candidate>& candidates,
+                         const TableParams& params) {
+  int chosen = -1;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (std::abs(cameraHeightAbove(cloud, candidates[i]) - params.camera_height) >
+        params.camera_height_tolerance) {
+      continue;
+    }
+    if (chosen < 0 || candidates[i].inliers.size() > candidates[chosen].inliers.size()) {
+      chosen = static_cast<int>(i);
+    }
+  }
+  return chosen;
+}
+
+// Points within the tolerance (and the inlier distance) of the plane normal to `up` at the known
+// camera height: where the table must be. Box tops can outnumber the table seen in gaps, and
+// with one level per box they take all max_planes searches.
+std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& up,
+                                     const TableParams& params) {
+  const Eigen::Vector3f eye = cloud.sensor_origin_.head<3>();
+  const Plane expected{up, params.camera_height - up.dot(eye)};
+  const float band = params.camera_height_tolerance + params.distance_threshold;
+  std::vector<int> band_points;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (std::abs(expected.signedDistance(cloud[i].getVector3fMap())) <= band) {
+      band_points.push_back(static_cast<int>(i));
+    }
+  }
+  return band_points;
+}
+
 }  // namespace
 
 TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
@@ -632,7 +679,13 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   const NormalConstraint constraint{params_.up / up_norm,
                                     std::cos(degToRad(params_.up_tolerance_deg)), false};
   std::vector<std::string> refused;
-  const std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
+  std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
+  const bool height_known = params_.camera_height > 0.0f;
+  if (height_known && supportAtKnownHeight(*cloud, candidates, params_) < 0) {
+    const std::vector<int> band = pointsAtKnownHeight(*cloud, constraint.axis, params_);
+    std::vector<Candidate> at_height = findPlanes(*cloud, params_, constraint, &refused, &band);
+    for (Candidate& candidate : at_height) candidates.push_back(std::move(candidate));
+  }
   if (candidates.empty()) {
     char reason[128];
     std::snprintf(reason, sizeof reason, "no plane within %g deg of up with at least %d points",
@@ -644,7 +697,30 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
     return result;
   }
   std::vector<int> objects;
-  const Candidate& table = candidates[selectSupport(*cloud, candidates, params_, &objects)];
+  int chosen = -1;
+  if (height_known) {
+    chosen = supportAtKnownHeight(*cloud, candidates, params_);
+    if (chosen < 0) {
+      std::string heights;
+      for (const Candidate& candidate : candidates) {
+        char height[16];
+        std::snprintf(height, sizeof height, "%s%.3f", heights.empty() ? "" : ", ",
+                      cameraHeightAbove(*cloud, candidate));
+        heights += height;
+      }
+      char reason[160];
+      std::snprintf(reason, sizeof reason,
+                    "no plane within %g m of table.camera_height = %g m below the camera (planes "
+                    "found ",
+                    params_.camera_height_tolerance, params_.camera_height);
+      result.reason = reason + heights + " m below it)";
+      return result;
+    }
+    objectIndices(*cloud, candidates[chosen], params_, objects);
+  } else {
+    chosen = selectSupport(*cloud, candidates, params_, &objects);
+  }
+  const Candidate& table = candidates[chosen];
 
   result.found = true;
   result.plane = table.plane;

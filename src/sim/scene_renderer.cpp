@@ -299,7 +299,8 @@ std::vector<Solid> buildSolids(const SceneSpec& spec) {
   for (size_t i = 0; i < spec.objects.size(); ++i) {
     const ObjectSpec& object = spec.objects[i];
     const Rgb& colour = kObjectPalette[i % palette_size];
-    const Vec3 bottom(object.position_on_table.x(), object.position_on_table.y(), table.height);
+    const Vec3 bottom(object.position_on_table.x(), object.position_on_table.y(),
+                      table.height + object.base_height);
     addObjectSolids(object, bottom, static_cast<int>(i), colour, solids);
   }
   return solids;
@@ -318,7 +319,7 @@ GroundTruthObject groundTruth(const ObjectSpec& object, const TableSpec& table,
   gt.form = object.form;
   gt.height = object.type == ShapeType::Cube ? object.box_size.z() : object.height;
   const Eigen::Vector3f centre_world(object.position_on_table.x(), object.position_on_table.y(),
-                                     table.height + object.objectHeight() / 2);
+                                     table.height + object.base_height + object.objectHeight() / 2);
   gt.center = camera_from_world * centre_world;
   Eigen::Matrix3f world_from_object =
       Eigen::AngleAxisf(object.yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
@@ -641,14 +642,22 @@ RenderedScene renderScene(const SceneSpec& spec) {
     rects.push_back(projectedRect(solid, scene.world_from_camera.inverse().cast<double>(), cam,
                                   jitter_margin_px));
   }
+  // Objects met by the ray of each pixel, hidden or not (unoccluded_pixels); pixel centres only.
+  std::vector<int> unoccluded(spec.objects.size(), 0);
   // Casts the ray through image point (pu, pv) for pixel i (u, v).
-  auto castRay = [&](int u, int v, double pu, double pv, size_t i) {
+  auto castRay = [&](int u, int v, double pu, double pv, size_t i, bool count_unoccluded) {
     const Vec3 dir = world_from_camera * Vec3((pu - cam.cx) / cam.fx, (pv - cam.cy) / cam.fy, 1.0);
     Hit hit;
     const Solid* hit_solid = nullptr;
+    int last_met = kNoReturn;  // an object's solids come one after another
     for (size_t k = 0; k < solids.size(); ++k) {
       if (!rects[k].contains(u, v)) continue;
       const double before = hit.t;
+      if (count_unoccluded && solids[k].label >= 0 && solids[k].label != last_met) {
+        Hit own;
+        solids[k].intersect(ray_origin, dir, own);
+        if (own.t < kInf) ++unoccluded[last_met = solids[k].label];
+      }
       solids[k].intersect(ray_origin, dir, hit);
       if (hit.t < before) hit_solid = &solids[k];
     }
@@ -659,7 +668,7 @@ RenderedScene renderScene(const SceneSpec& spec) {
     for (int c = 0; c < 3; ++c) colours[i][c] = hit_solid ? hit_solid->colour[c] * shade : 0.0f;
   };
   for (int v = 0; v < height; ++v) {
-    for (int u = 0; u < width; ++u) castRay(u, v, u, v, static_cast<size_t>(v) * width + u);
+    for (int u = 0; u < width; ++u) castRay(u, v, u, v, static_cast<size_t>(v) * width + u, true);
   }
   // Lateral noise shows only where the surface changes: recast the rays of pixels next to a
   // label change or a depth jump through jittered image points (saves ~0.6 M normal draws).
@@ -682,7 +691,7 @@ RenderedScene renderScene(const SceneSpec& spec) {
         if (!edge) continue;
         const double pu = u + noise.lateral_sigma_px * standard_normal(rng);
         const double pv = v + noise.lateral_sigma_px * standard_normal(rng);
-        castRay(u, v, pu, pv, i);
+        castRay(u, v, pu, pv, i, false);
       }
     }
   }
@@ -745,6 +754,7 @@ RenderedScene renderScene(const SceneSpec& spec) {
   scene.objects.reserve(spec.objects.size());
   for (const auto& object : spec.objects) {
     scene.objects.push_back(groundTruth(object, spec.table, camera_from_world));
+    scene.objects.back().unoccluded_pixels = unoccluded[scene.objects.size() - 1];
   }
   for (int v = 0; v < height; ++v) {
     for (int u = 0; u < width; ++u) {
@@ -827,9 +837,9 @@ bool objectsInView(const SceneSpec& spec, float margin) {
   const Eigen::Isometry3f camera_from_world = cameraPose(spec).inverse();
   for (const auto& object : spec.objects) {
     const Eigen::Vector3f p =
-        camera_from_world * Eigen::Vector3f(object.position_on_table.x(),
-                                            object.position_on_table.y(),
-                                            spec.table.height + object.objectHeight() / 2);
+        camera_from_world *
+        Eigen::Vector3f(object.position_on_table.x(), object.position_on_table.y(),
+                        spec.table.height + object.base_height + object.objectHeight() / 2);
     if (p.z() < spec.noise.min_range + 0.05f) return false;
     const float u = spec.camera.fx * p.x() / p.z() + spec.camera.cx;
     const float v = spec.camera.fy * p.y() / p.z() + spec.camera.cy;
@@ -1110,6 +1120,7 @@ std::string groundTruthJson(const RenderedScene& scene) {
     out << (i ? "," : "") << "\n    {\"type\": \"" << shapeTypeName(o.type)
         << "\", \"name\": " << jsonString(o.name) << ", \"form\": \"" << formName(o.form)
         << "\", \"visible_pixels\": " << o.visible_pixels
+        << ", \"unoccluded_pixels\": " << o.unoccluded_pixels
         << ", \"at_image_border\": " << o.at_image_border
         << ",\n     \"center\": " << jsonArray(o.center)
         << ", \"orientation_xyzw\": " << jsonQuaternion(o.orientation)
@@ -1123,7 +1134,8 @@ std::string groundTruthJson(const RenderedScene& scene) {
     }
     out << ", \"height\": " << o.height
         << ",\n     \"position_on_table\": " << jsonArray(s.position_on_table)
-        << ", \"yaw_deg\": " << s.yaw * 180.0 / kPi << "}";
+        << ", \"base_height\": " << s.base_height << ", \"yaw_deg\": " << s.yaw * 180.0 / kPi
+        << "}";
   }
   out << "\n  ]\n}\n";
   return out.str();

@@ -4,11 +4,14 @@
 //                      [--osd DIR] [--osd-up auto|labelled] [--out DIR] [--no-plots] [--verbose]
 //                      [--save-failures DIR]
 //                      [--everyday-scenes N] [--everyday N] [--sensor kinect|realsense]
+//                      [--clutter-scenes N] [--clutter N]
 //                      [--set stage.name=value ...]   (parameters as in estimate_shapes)
 // plus everyday objects (issue 12) on a Kinect v1 and a RealSense D435; --everyday N runs only
-// that part, with N scenes per sensor.
+// that part, with N scenes per sensor; and rendered clutter (issue 15): --clutter N runs only
+// that part, with N scenes per kind.
 #include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
+#include "tabletop_shapes/sim/clutter_scenes.h"
 #include "tabletop_shapes/sim/evaluation.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
 
@@ -49,6 +52,8 @@ struct Options {
   std::string failures_dir;
   int everyday_scenes = 40;    // per sensor, after the other parts; 0: none
   bool everyday_only = false;  // --everyday N: only the everyday part
+  int clutter_scenes = 8;      // per clutter kind, after the rendered tables; 0: none
+  bool clutter_only = false;   // --clutter N: only the clutter part
   std::vector<SensorModel> sensors = {SensorModel::KinectV1, SensorModel::RealSenseD435};
   PipelineParams params;  // defaults, changed by --set stage.name=value
 };
@@ -110,6 +115,7 @@ void progress(int done, int total) {
 struct Tally {
   std::vector<Sample> samples;
   int false_positives = 0;
+  int pieces = 0;  // of the false positives: centred within a true object's bounding sphere + 3 cm
   int scenes_without_table = 0;
   std::vector<double> frame_ms;
 };
@@ -176,13 +182,38 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
   }
 }
 
+// Radius of the sphere around a true object's centre that holds the object.
+float boundingRadius(const GroundTruthObject& o) {
+  if (o.type == ShapeType::Cube) return 0.5f * o.dimensions.norm();
+  return std::hypot(std::max(o.radius_bottom, o.radius_top), 0.5f * o.height);
+}
+
+// Unmatched detections centred within some true object's bounding sphere grown by 3 cm: a part
+// of an object found apart from the rest (the rest are junk).
+int piecesAmong(const std::vector<GroundTruthObject>& truth, const std::vector<ShapeFit>& found,
+                const std::vector<Match>& matches) {
+  int pieces = 0;
+  for (size_t d = 0; d < found.size(); ++d) {
+    if (std::any_of(matches.begin(), matches.end(),
+                    [&](const Match& m) { return m.detection == static_cast<int>(d); })) {
+      continue;
+    }
+    pieces += std::any_of(truth.begin(), truth.end(), [&](const GroundTruthObject& o) {
+      return (found[d].center - o.center).norm() <= boundingRadius(o) + 0.03f;
+    });
+  }
+  return pieces;
+}
+
 // A detection belongs to the true object whose centre is nearest, within `match_distance`.
+// camera_height_known: table.camera_height from the truth, as a robot would know it.
 void runScene(const SceneSpec& spec, const Options& options, Tally& tally,
-              double match_distance = 0.06) {
+              double match_distance = 0.06, bool camera_height_known = false) {
   const RenderedScene scene = renderScene(spec);
   PipelineParams params = options.params;
   params.auto_up = options.auto_up;
   params.table.up = scene.up;  // what tf2 would give a robot
+  if (camera_height_known) params.table.camera_height = scene.table_plane.d;
   Pipeline pipeline(params);
   const SceneResult result = pipeline.process(*scene.cloud);
   tally.frame_ms.push_back(result.times.total_ms);
@@ -195,6 +226,7 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally,
   for (const Match& m : matches) detection_of[m.truth] = m.detection;
   const int false_positives = static_cast<int>(result.objects.size() - matches.size());
   tally.false_positives += false_positives;
+  tally.pieces += piecesAmong(scene.objects, result.objects, matches);
   if (options.verbose) printScene(scene, result, matches, voxels);
   const bool missed = std::count(detection_of.begin(), detection_of.end(), -1) > 0;
   const bool wrong_type = std::any_of(matches.begin(), matches.end(), [&](const Match& m) {
@@ -589,6 +621,86 @@ void printEverydayTable(const std::map<SensorModel, Tally>& tallies, const Optio
   }
 }
 
+// Issue 15's targets for rendered clutter: objects found, type right.
+constexpr double kTargetClutterFound = 95.0, kTargetClutterTypeRight = 97.0;
+
+// One row of the clutter table. Dimension and volume errors: found objects of the right solid
+// at least half visible (visible pixels >= half the pixels their rays meet, hidden or not).
+void printClutterRow(const std::string& kind, int scenes, const Tally& tally) {
+  int counted = 0, found = 0, right = 0, half_visible = 0;
+  std::vector<double> dimensions, volumes;
+  for (const Sample& s : tally.samples) {
+    if (!s.observable) continue;
+    ++counted;
+    if (!s.detected) continue;
+    ++found;
+    if (!expectedSolid(s.truth, s.fit, s.up)) continue;
+    ++right;
+    if (2 * s.truth.visible_pixels < s.truth.unoccluded_pixels || !s.fit.ok) continue;
+    ++half_visible;
+    for (const Measure& m : dimensionErrors(s.truth, s.fit, s.up)) {
+      dimensions.push_back(m.error_percent);
+    }
+    for (const Measure& m : compareToTruth(s.truth, s.fit)) {
+      if (isVolume(m)) volumes.push_back(m.error_percent);
+    }
+  }
+  const double found_percent = 100.0 * found / std::max(counted, 1);
+  const double right_percent = 100.0 * right / std::max(found, 1);
+  std::printf("  %-28s %6d %7d %5d %5.1f%% %6d %5d %5d %5.1f%% %9d %8.2f%% %8.2f%%  %s\n",
+              kind.c_str(), scenes, counted, found, found_percent, tally.pieces,
+              tally.false_positives - tally.pieces, right, right_percent, half_visible,
+              percentile(dimensions, 0.5), percentile(volumes, 0.5),
+              found_percent >= kTargetClutterFound && right_percent >= kTargetClutterTypeRight &&
+                      percentile(dimensions, 0.5) <= 2.0 && percentile(volumes, 0.5) <= 5.0
+                  ? "met"
+                  : "MISSED");
+}
+
+void runClutter(const Options& options) {
+  // The kinds, then the covered tables again with table.camera_height known.
+  std::vector<Tally> tallies(kClutterKinds + 1);
+  const int total = options.clutter_scenes * (kClutterKinds + 1);
+  int done = 0;
+  for (int k = 0; k <= kClutterKinds; ++k) {
+    const ClutterKind kind = k < kClutterKinds ? static_cast<ClutterKind>(k) : ClutterKind::Covered;
+    std::mt19937 seeds(options.seed);
+    for (int i = 0; i < options.clutter_scenes; ++i) {
+      runScene(clutterScene(kind, static_cast<uint32_t>(seeds())), options, tallies[k], 0.06,
+               k == kClutterKinds);
+      progress(++done, total);
+    }
+  }
+  std::printf(
+      "\nRendered clutter (issue 15), Kinect v1, %d scenes per kind, seed %u, up given: touching ="
+      " 16 objects 2 mm apart; stacked = 6 piles\n  (box on box, box across two, can lying on a"
+      " box, can on a box); half hidden = 5 boxes each hiding the lower part of an object behind;\n"
+      "  covered = 24 objects 5-10 mm apart on a 0.7 x 0.5 m table. counted: >= %d visible pixels"
+      " covering clustering.min_size voxels; found: matched within 6 cm;\n  pieces: other"
+      " detections within an object's bounding sphere + 3 cm, junk: the rest; right: the solid"
+      " expected (a lying can: lying cylinder or box);\n  dim / vol: median eq. 17 error of right"
+      " solids at least half visible (n). Goal: found >= %.0f %%, right >= %.0f %%, dim <= 2 %%,"
+      " vol <= 5 %%\n\n",
+      options.clutter_scenes, options.seed, kMinVisiblePixels, kTargetClutterFound,
+      kTargetClutterTypeRight);
+  std::printf("  %-28s %6s %7s %5s %6s %6s %5s %5s %6s %9s %9s %9s  %s\n", "kind", "scenes",
+              "counted", "found", "", "pieces", "junk", "right", "", "n dim/vol", "med dim",
+              "med vol", "goal");
+  Tally all;
+  for (int k = 0; k < kClutterKinds; ++k) {
+    printClutterRow(clutterKindName(static_cast<ClutterKind>(k)), options.clutter_scenes,
+                    tallies[k]);
+    all.samples.insert(all.samples.end(), tallies[k].samples.begin(), tallies[k].samples.end());
+    all.false_positives += tallies[k].false_positives;
+    all.pieces += tallies[k].pieces;
+    all.scenes_without_table += tallies[k].scenes_without_table;
+  }
+  printClutterRow("all", options.clutter_scenes * kClutterKinds, all);
+  printClutterRow("covered, camera height known", options.clutter_scenes, tallies[kClutterKinds]);
+  std::printf("  (scenes without table %d; with the camera height %d)\n", all.scenes_without_table,
+              tallies[kClutterKinds].scenes_without_table);
+}
+
 void runEveryday(const Options& options) {
   std::map<SensorModel, Tally> tallies;
   const int total = options.everyday_scenes * static_cast<int>(options.sensors.size());
@@ -643,7 +755,12 @@ Options parse(int argc, char** argv) {
       options.failures_dir = value();
     else if (arg == "--set")
       setFromText(value(), options.params);
-    else if (arg == "--everyday-scenes")
+    else if (arg == "--clutter-scenes")
+      options.clutter_scenes = std::stoi(value());
+    else if (arg == "--clutter") {
+      options.clutter_scenes = std::stoi(value());
+      options.clutter_only = true;
+    } else if (arg == "--everyday-scenes")
       options.everyday_scenes = std::stoi(value());
     else if (arg == "--everyday") {
       options.everyday_scenes = std::stoi(value());
@@ -663,7 +780,8 @@ Options parse(int argc, char** argv) {
           "usage: benchmark_accuracy [--paper-scenes N] [--random-scenes N] [--seed S]"
           " [--up auto] [--osd DIR] [--osd-up auto|labelled] [--out DIR] [--no-plots] [--verbose]"
           " [--save-failures DIR] [--everyday-scenes N] [--everyday N]"
-          " [--sensor kinect|realsense] [--set stage.name=value ...]\n");
+          " [--sensor kinect|realsense] [--clutter-scenes N] [--clutter N]"
+          " [--set stage.name=value ...]\n");
       std::exit(2);
     }
   }
@@ -678,6 +796,10 @@ int main(int argc, char** argv) {
   if (!options.failures_dir.empty()) fs::create_directories(options.failures_dir);
   if (options.everyday_only) {
     runEveryday(options);
+    return 0;
+  }
+  if (options.clutter_only) {
+    runClutter(options);
     return 0;
   }
   std::mt19937 rng(options.seed);
@@ -697,6 +819,7 @@ int main(int argc, char** argv) {
   printPaperTable(tally);
   printDetection(tally);
   printBreakdowns(tally, options);
+  if (options.clutter_scenes > 0) runClutter(options);
   writeFig12(tally, options);
   if (options.plots) writePlots(options);
   if (!options.osd_dir.empty()) runOsd(options);

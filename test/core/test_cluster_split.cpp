@@ -22,10 +22,15 @@ void toDisparitySteps(Cloud& cloud) {
   }
 }
 
-// Moves the table frame into a camera frame (camera at the origin, as the core assumes).
-std::vector<CloudPtr> split(Cloud scene,
-                            const synthetic::Sampler& s = synthetic::voxelGridSampler(),
-                            bool disparity_steps = false) {
+struct SeenCluster {
+  CloudPtr cluster;
+  Plane table;
+};
+
+// Moves the table frame into a camera frame (camera at the origin, as the core assumes) and
+// returns the scene as the one Euclidean cluster the pipeline hands over.
+SeenCluster seenCluster(Cloud scene, const synthetic::Sampler& s = synthetic::voxelGridSampler(),
+                        bool disparity_steps = false) {
   const Eigen::Isometry3f camera_from_table = synthetic::cameraFromTable(s);
   synthetic::transformCloud(camera_from_table, scene);
   if (disparity_steps) toDisparitySteps(scene);
@@ -33,10 +38,21 @@ std::vector<CloudPtr> split(Cloud scene,
   auto cloud = std::make_shared<Cloud>(scene);
   cloud->width = static_cast<uint32_t>(cloud->size());
   cloud->height = 1;
-  // One Euclidean cluster first, as the pipeline hands it over.
   const std::vector<CloudPtr> clusters = extractClusters(cloud, ClusteringParams());
   EXPECT_EQ(clusters.size(), 1u);
-  return splitAtConcaveSeams(clusters.at(0), table, ClusteringParams());
+  return {clusters.at(0), table};
+}
+
+std::vector<CloudPtr> split(Cloud scene,
+                            const synthetic::Sampler& s = synthetic::voxelGridSampler(),
+                            bool disparity_steps = false) {
+  const SeenCluster seen = seenCluster(std::move(scene), s, disparity_steps);
+  return splitAtConcaveSeams(seen.cluster, seen.table, ClusteringParams());
+}
+
+bool mayHoldAStack(Cloud scene) {
+  const SeenCluster seen = seenCluster(std::move(scene));
+  return mayHoldAStack(*seen.cluster, seen.table, ClusteringParams());
 }
 
 // As many parts as objects, each the size of one of them (within `tolerance`); sizes add up.
@@ -57,16 +73,28 @@ void expectPartsMatch(const std::vector<CloudPtr>& parts, const std::vector<Clou
   }
 }
 
-TEST(ClusterSplit, BoxStackedOnABox) {
+// A box 16 x 10 x 5 cm lying on a box 24 x 16 x 6 cm, and the lower box's visible points.
+struct BoxOnBox {
+  CloudPtr lower_visible, upper;
+  Cloud scene;
+};
+BoxOnBox boxOnBox() {
+  BoxOnBox stack;
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
-  const CloudPtr upper = synthetic::lifted(
+  stack.upper = synthetic::lifted(
       synthetic::box({0.16f, 0.10f, 0.05f}, {0.01f, 0.01f}, 0.3f, synthetic::voxelGridSampler()),
       0.06f);
-  const CloudPtr lower_visible =
-      synthetic::withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
-  Cloud scene = *lower_visible;
-  scene += *upper;
+  stack.lower_visible = synthetic::withoutFootprint(lower, -0.08f, 0.1f, -0.06f, 0.08f, 0.06f);
+  stack.scene = *stack.lower_visible;
+  stack.scene += *stack.upper;
+  return stack;
+}
+
+TEST(ClusterSplit, BoxStackedOnABox) {
+  const BoxOnBox stack = boxOnBox();
+  const CloudPtr &lower_visible = stack.lower_visible, &upper = stack.upper;
+  const Cloud& scene = stack.scene;
   // Within 3 %: the strips of the lower box's top face around the upper box touch the upper
   // box most, but meet it at the concave seam, and belong to the lower box (they went to the
   // upper one, 9 % off, when small parts simply joined the part they touched most).
@@ -86,6 +114,25 @@ TEST(ClusterSplit, CylinderStandingOnARoundTin) {
   Cloud scene = *tin_visible;
   scene += *can;
   expectPartsMatch(split(scene), {tin_visible, can});
+}
+
+// The cheap test before the split: a stack has points below its top band and beside it; a single
+// box, cylinder, cup or cone opening up has every point under its top's footprint.
+TEST(ClusterSplit, OnlyClustersThatCanHoldAStackAreSplit) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  EXPECT_TRUE(mayHoldAStack(boxOnBox().scene));
+  Cloud can_on_tin = *synthetic::roundObject(0.10f, 0.10f, 0.05f, {0.0f, 0.0f}, s);
+  can_on_tin +=
+      *synthetic::lifted(synthetic::roundObject(0.035f, 0.035f, 0.09f, {0.0f, 0.0f}, s), 0.05f);
+  EXPECT_TRUE(mayHoldAStack(can_on_tin));
+  Cloud tall_beside_low = *synthetic::box({0.06f, 0.06f, 0.16f}, {0.0f, 0.0f}, 0.0f, s);
+  tall_beside_low += *synthetic::box({0.10f, 0.08f, 0.05f}, {0.08f, 0.0f}, 0.0f, s);
+  EXPECT_TRUE(mayHoldAStack(tall_beside_low));
+
+  EXPECT_FALSE(mayHoldAStack(*synthetic::box({0.20f, 0.10f, 0.12f}, {0.0f, 0.0f}, 0.4f, s)));
+  EXPECT_FALSE(mayHoldAStack(*synthetic::box({0.06f, 0.06f, 0.05f}, {0.0f, 0.0f}, 0.0f, s)));
+  EXPECT_FALSE(mayHoldAStack(*synthetic::roundObject(0.04f, 0.04f, 0.16f, {0.0f, 0.0f}, s)));
+  EXPECT_FALSE(mayHoldAStack(*synthetic::roundObject(0.03f, 0.05f, 0.12f, {0.0f, 0.0f}, s)));
 }
 
 TEST(ClusterSplit, SingleObjectsStayWhole) {

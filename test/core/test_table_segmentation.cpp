@@ -1,10 +1,12 @@
 // §2.2-2.4 table segmentation: OLS plane refinement, support plane choice on synthetic scenes
 // with a floor, "up" estimation for a tilted camera, and real OSD / PCL scenes with labels.
 #include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/core/table_segmentation.h"
 
 #include "synthetic.h"
+#include "tabletop_shapes/sim/scene_renderer.h"
 
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
@@ -434,6 +436,68 @@ TEST(TableSegmenter, TableSeventyPercentCoveredIsFound) {
   Eigen::Vector3f estimated_up;
   ASSERT_TRUE(estimateUp(scene.cloud, TableParams(), estimated_up));
   EXPECT_LT(angleDeg(estimated_up, scene.up), 1.0f);
+}
+
+// A tray (a flat box 0.60 x 0.45 x 0.04 m) covering half of a 0.9 x 0.6 m table, four boxes on
+// it, rendered (the table is hidden where the tray hides it). The tray's top
+// is the highest level plane with objects on it, large enough not to be an object's top: without
+// a hint it is the support. A robot that knows its camera's height above the table gets the
+// table.
+TEST(TableSegmenter, KnownCameraHeightChoosesTheTableOverATray) {
+  sim::SceneSpec spec;
+  spec.table.length = 0.9f;
+  spec.table.width = 0.6f;
+  spec.placement = sim::CameraPlacement{1.0f, 45.0f, 70.0f, true, {0.0f, 0.0f}};
+  // Noiseless: with the Kinect model's noise (flying pixels along the tray's far edge, most
+  // likely) points lie under the tray's top and reject it already without the hint.
+  spec.noise = sim::NoiseModel::noiseless();
+  const float tray_height = 0.04f;
+  sim::ObjectSpec tray;
+  tray.box_size = {0.60f, 0.45f, tray_height};
+  spec.objects.push_back(tray);
+  for (int i = 0; i < 4; ++i) {
+    sim::ObjectSpec box;
+    box.box_size = {0.12f, 0.08f, 0.06f + 0.02f * i};
+    box.position_on_table = {i % 2 ? 0.14f : -0.14f, i < 2 ? -0.11f : 0.11f};
+    box.base_height = tray_height;
+    spec.objects.push_back(box);
+  }
+  const sim::RenderedScene scene = sim::renderScene(spec);
+  auto cloud = std::make_shared<Cloud>();
+  Preprocessor(PreprocessParams()).apply(*scene.cloud, *cloud);
+  const float camera_height = scene.table_plane.d;  // the camera is the optical frame's origin
+
+  TableParams params;
+  params.up = scene.up;
+  TableResult result = TableSegmenter(params).segment(cloud);
+  ASSERT_TRUE(result.found) << result.reason;
+  EXPECT_NEAR(result.plane.d, camera_height - tray_height, 0.005f);  // the tray's top
+
+  params.camera_height = camera_height + 0.03f;  // roughly known
+  result = TableSegmenter(params).segment(cloud);
+  ASSERT_TRUE(result.found) << result.reason;
+  EXPECT_NEAR(result.plane.d, camera_height, 0.003f);  // the table
+  EXPECT_LT(angleDeg(result.plane.normal, scene.up), 0.5f);
+
+  params.camera_height = camera_height + 0.3f;  // no plane there: no table, and why
+  result = TableSegmenter(params).segment(cloud);
+  EXPECT_FALSE(result.found);
+  EXPECT_NE(result.reason.find("table.camera_height"), std::string::npos) << result.reason;
+}
+
+TEST(TableSegmenter, AbsurdCameraHeightsAreRefused) {
+  PipelineParams params;
+  std::string error;
+  EXPECT_FALSE(setParameter(params, "table", "camera_height", -0.5, error));
+  EXPECT_NE(error.find("outside"), std::string::npos) << error;
+  EXPECT_FALSE(setParameter(params, "table", "camera_height", 12.0, error));
+  error.clear();
+  EXPECT_TRUE(setParameter(params, "table", "camera_height", 0.03, error)) << error;
+  EXPECT_FALSE(validateParams(params, error));  // below its own tolerance (0.05 m)
+  EXPECT_NE(error.find("table.camera_height"), std::string::npos) << error;
+  error.clear();
+  EXPECT_TRUE(setParameter(params, "table", "camera_height", 0.6, error)) << error;
+  EXPECT_TRUE(validateParams(params, error)) << error;
 }
 
 TEST(TableSegmenter, BadInputReportsAReason) {

@@ -8,8 +8,16 @@
 
 namespace tabletop_shapes {
 
-// The cluster's parts, largest first; the cluster itself when it is not split. Parts are kept
-// apart only where one rises above the other (stacked or leaning on it, heights from `table`).
+// Whether the cluster can hold more than one object, one rising above the other, cheaply (a
+// pass over its points): some of its points lie lower than its top band (the points within
+// 2 cm of its highest point) and outside that band's footprint on the table, beyond depth
+// noise. A box, cylinder, cup or bowl standing alone has every point under its top's footprint
+// and is not split: the split (supervoxels + LCCP) costs far more than fitting.
+bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params);
+
+// The cluster's parts, largest first; the cluster itself when it is not split (also when
+// mayHoldAStack says no). Parts are kept apart only where one rises above the other (stacked or
+// leaning on it, heights from `table`).
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params);
 

@@ -56,10 +56,16 @@ struct TableParams {
   // PCL's mug (radius 0.054 m fitted instead of 0.039 m); 0.02 m keeps them, and the outlier
   // removal and minimum cluster size still drop table-edge noise.
   float hull_margin = 0.02f;
-  float min_height = 0.008f;   // object points start this far above the plane [m]
-  float max_height = 0.5f;     // and end this far above it [m]
-  int outlier_k = 50;          // §2.4 neighbours
-  float outlier_alpha = 3.0f;  // §2.4 keep mean-distance < mu + alpha*sigma (OSD-tuned)
+  float min_height = 0.008f;  // object points start this far above the plane [m]
+  float max_height = 0.5f;    // and end this far above it [m]
+  // The camera's height above the table top along up, when the robot knows it (tf, its own
+  // build) [m]; 0: unknown. Given, the support plane is the plane found at that height (within
+  // camera_height_tolerance), not the highest one with objects: on a crowded table a box top is
+  // level too, and may hold more points than the table seen only in the gaps.
+  float camera_height = 0.0f;
+  float camera_height_tolerance = 0.05f;  // [m]
+  int outlier_k = 50;                     // §2.4 neighbours
+  float outlier_alpha = 3.0f;             // §2.4 keep mean-distance < mu + alpha*sigma (OSD-tuned)
 };
 
 // §2.5

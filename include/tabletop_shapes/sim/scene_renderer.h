@@ -171,7 +171,10 @@ struct ObjectSpec {
   float radius_top = 0.04f;
   float height = 0.1f;
   Eigen::Vector2f position_on_table{0.0f, 0.0f};  // world (x, y) of the bottom centre [m]
-  float yaw = 0.0f;                               // about world z [rad]
+  // Its bottom this far above the table top: resting on other objects (a box on a box, a box
+  // across two, a can lying on a box) [m]. The scene spec keeps the pile consistent.
+  float base_height = 0.0f;
+  float yaw = 0.0f;  // about world z [rad]
   std::string name;  // optional label (e.g. "milk-tea box"), copied into the ground truth
 
   // Top above the table [m].
@@ -242,7 +245,10 @@ struct GroundTruthObject {
   float radius_top = 0.0f;
   float height = 0.0f;  // all types [m] (a lying can: its length along the axis)
   ObjectForm form = ObjectForm::Plain;
-  int visible_pixels = 0;        // valid cloud points on this object (after noise)
+  int visible_pixels = 0;  // valid cloud points on this object (after noise)
+  // Pixels whose ray meets the object, hidden by others or not (before noise): visible_pixels
+  // over this is the fraction of it left visible by the objects in front.
+  int unoccluded_pixels = 0;
   bool at_image_border = false;  // some of its valid pixels lie on the image's outer rows / columns
   Eigen::Vector3f axis() const { return orientation * Eigen::Vector3f::UnitZ(); }
 };
