@@ -59,7 +59,8 @@ TEST(CloudInput, EmptyCloudWithBillionsOfRowsIsRefusedAtOnce) {
   const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(invalidCloudReason(msg, kCap),
             "width 0 x height 4294967295: an empty cloud is 0 x 0, 0 x 1 or 1 x 0");
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.01);
+  // The stall was 5-12 s; 1 s catches it without failing when a loaded machine deschedules us.
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
 }
 
 // Finding 4: 100 x 100 declared, 4.9 MB carried, read without comment.
