@@ -43,7 +43,9 @@ std::pair<CloudPtr, CloudPtr> openBowl(float r, float h, const Eigen::Vector2f& 
   const float wall = 0.004f, inner = r - wall;
   const synthetic::Sampler s = synthetic::voxelGridSampler();
   auto outer = std::make_shared<Cloud>();
-  for (const auto& p : *synthetic::roundObject(r, r, h, centre, s)) {
+  // Kept in a local: a range-for over *temporary_ptr would read the cloud after it is freed.
+  const CloudPtr solid = synthetic::roundObject(r, r, h, centre, s);
+  for (const auto& p : *solid) {
     const float radius = std::hypot(p.x - centre.x(), p.y - centre.y());
     if (p.z < h - 1e-4f || radius > inner) outer->push_back(p);  // no lid: the rim only
   }
