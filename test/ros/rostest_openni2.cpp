@@ -60,14 +60,18 @@ class Recorder {
     std::lock_guard<std::mutex> lock(mutex_);
     return arrivals_;
   }
+  // The spinner threads may be inside the callback right now: unsubscribing first waits for
+  // them, so that they never push into vectors already destroyed (the double free that made
+  // openni2_errors die now and then while a driver streamed at 30 Hz).
+  ~Recorder() { subscriber_.shutdown(); }
   void shutdown() { subscriber_.shutdown(); }
 
  private:
   ros::NodeHandle node_;
-  ros::Subscriber subscriber_;
   std::mutex mutex_;
   std::vector<boost::shared_ptr<const Message>> messages_;
   std::vector<double> arrivals_;
+  ros::Subscriber subscriber_;  // last: destroyed first
 };
 
 // Log lines of every node (the nodelets log from the manager).
