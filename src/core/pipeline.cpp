@@ -22,6 +22,7 @@ Pipeline::Pipeline(const PipelineParams& params) : filtered_(std::make_shared<Cl
 
 void Pipeline::setParams(const PipelineParams& params) {
   params_ = params;
+  up_estimate_ = UpEstimate();  // an estimate made with other parameters
   preprocessor_.setParams(params.preprocess);
   estimator_.setParams(params.shapes);
 }
@@ -46,12 +47,12 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
 
   stage = Clock::now();
   TableParams table_params = params_.table;
-  if (params_.auto_up && !estimateUp(filtered_, table_params, table_params.up)) {
-    result.table.reason = "no large plane with the camera above it to take 'up' from";
+  if (params_.auto_up) {
+    if (up_estimate_.segment(filtered_, table_params, result.table)) result.up = table_params.up;
   } else {
     result.up = table_params.up;
     result.table = TableSegmenter(table_params).segment(filtered_);
-    if (params_.check_up && !params_.auto_up) {
+    if (params_.check_up) {
       result.up_warning = checkUpAgainstScene(filtered_, table_params, result.table).warning;
     }
   }

@@ -96,4 +96,27 @@ UpCheck checkUpAgainstScene(const CloudConstPtr& cloud, const TableParams& param
   return check;
 }
 
+UpEstimate::UpEstimate(int reestimate_frames)
+    : reestimate_frames_(std::max(reestimate_frames, 1)) {}
+
+bool UpEstimate::segment(const CloudConstPtr& cloud, TableParams& params, TableResult& table) {
+  const bool reuse = held_ && frames_since_estimate_ < reestimate_frames_;
+  if (reuse) {
+    ++frames_since_estimate_;
+    params.up = up_;
+    table = TableSegmenter(params).segment(cloud);
+    if (table.found) return true;
+  }
+  frames_since_estimate_ = 1;
+  held_ = estimateUp(cloud, params, up_);
+  if (!held_) {
+    table = TableResult();
+    table.reason = "no large plane with the camera above it to take 'up' from";
+    return false;
+  }
+  params.up = up_;
+  table = TableSegmenter(params).segment(cloud);
+  return true;
+}
+
 }  // namespace tabletop_shapes

@@ -138,15 +138,11 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     return up;
   }
 
-  // Up in the cloud frame; false (frame skipped) when the transform is missing. An up that
-  // cannot be estimated leaves `no_up` saying why (the frame gets an answer without a table).
-  bool lookUpDirection(const CloudConstPtr& cloud, TableParams& params, std::string& no_up) {
+  // A given up in the cloud frame (parameter or tf); false (frame skipped) when the transform
+  // is missing.
+  bool lookUpDirection(const CloudConstPtr& cloud, TableParams& params) {
     if (up_frame_.empty()) {
-      if (!up_.automatic) {
-        params.up = up_.vector;
-      } else if (!estimateUp(cloud, params, params.up)) {
-        no_up = "no large plane with the camera above it to take 'up' from";
-      }
+      params.up = up_.vector;
       return true;
     }
     const std_msgs::Header header = pcl_conversions::fromPCL(cloud->header);
@@ -178,14 +174,13 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     }
     // The core takes std::shared_ptr: share the received cloud, no copy.
     const CloudConstPtr input = pcl::pcl_ptr(cloud);
-    std::string no_up;
-    if (!lookUpDirection(input, params, no_up)) return;
     TableResult result;
-    if (no_up.empty()) {
+    if (up_frame_.empty() && up_.automatic) {
+      up_estimate_.segment(input, params, result);
+    } else {
+      if (!lookUpDirection(input, params)) return;
       result = TableSegmenter(params).segment(input);
       checkUp(input, params, result);
-    } else {
-      result.reason = no_up;
     }
     if (!result.found) {
       monitor_->frameWithoutResult(
@@ -210,9 +205,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   }
 
   // A given up (parameter or tf) against the scene's, at most once a second: it costs a plane
-  // search. An estimated up is the scene's by construction.
+  // search. (An estimated up is the scene's by construction and is not checked.)
   void checkUp(const CloudConstPtr& cloud, const TableParams& params, const TableResult& table) {
-    if (up_frame_.empty() && up_.automatic) return;
     const ros::WallTime now = ros::WallTime::now();
     if (now < next_up_check_) return;
     next_up_check_ = now + ros::WallDuration(1.0);
@@ -228,7 +222,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
 
   std::unique_ptr<bridge::StageMonitor> monitor_;
   std::string up_frame_;
-  UpSetting up_;  // used when up_frame_ is empty
+  UpSetting up_;            // used when up_frame_ is empty
+  UpEstimate up_estimate_;  // up: auto, held between frames
   ros::WallTime next_up_check_;
   ros::Duration tf_timeout_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;

@@ -18,6 +18,7 @@
 #include <ctime>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -69,20 +70,22 @@ Series timeClouds(const std::string& name,
                   const std::function<void()>& tick) {
   Series series;
   series.name = name;
-  PipelineParams params;
-  params.auto_up = ups.empty();
-  Pipeline pipeline(params);
-  // One untimed frame per cloud first: buffers sized, caches warm, as in a running chain.
+  // One pipeline per cloud, as each cloud stands for a camera stream of its own (an estimated
+  // up is held between the frames of a stream), then one untimed frame per cloud: buffers
+  // sized, caches warm, as in a running chain.
+  std::vector<std::unique_ptr<Pipeline>> pipelines;
   for (size_t c = 0; c < clouds.size(); ++c) {
-    if (!ups.empty()) params.table.up = ups[c], pipeline.setParams(params);
-    pipeline.process(clouds[c]);
+    PipelineParams params;
+    params.auto_up = ups.empty();
+    if (!ups.empty()) params.table.up = ups[c];
+    pipelines.push_back(std::make_unique<Pipeline>(params));
+    pipelines.back()->process(clouds[c]);
   }
   double points = 0, objects = 0;
   for (int f = 0; f < frames; ++f) {
     const size_t c = static_cast<size_t>(f) % clouds.size();
-    if (!ups.empty()) params.table.up = ups[c], pipeline.setParams(params);
     const double cpu_start = cpuMs();
-    const SceneResult result = pipeline.process(clouds[c]);
+    const SceneResult result = pipelines[c]->process(clouds[c]);
     series.cpu.push_back(cpuMs() - cpu_start);
     series.preprocess.push_back(result.times.preprocess_ms);
     series.table.push_back(result.times.table_ms);

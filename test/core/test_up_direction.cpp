@@ -6,6 +6,9 @@
 
 #include <pcl/common/io.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 using namespace tabletop_shapes;
@@ -121,4 +124,70 @@ TEST(CheckUpAgainstScene, TheLevelCameraGuessOnATiltedCameraIsWarnedWithItsAngle
   EXPECT_EQ(check.warning.rfind("up [0.000, -1.000, 0.000] is 40 deg from the scene's up [", 0), 0u)
       << check.warning;
   EXPECT_NE(check.warning.find("check up / up_frame"), std::string::npos) << check.warning;
+}
+
+namespace {
+
+sim::RenderedScene sceneAtPitch(float pitch_deg) {
+  return sim::renderScene(sim::paperScene({1.0f, pitch_deg, 20.0f}, sim::NoiseModel(), 7));
+}
+
+float angleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0f, 1.0f)) * 180.0f /
+         static_cast<float>(kPi);
+}
+
+}  // namespace
+
+TEST(UpEstimate, HoldsTheUpForItsFramesThenEstimatesAgain) {
+  const sim::RenderedScene first = sceneAtPitch(40.0f), turned = sceneAtPitch(45.0f);
+  const CloudPtr first_cloud = xyz(first), turned_cloud = xyz(turned);
+  UpEstimate estimate(3);
+  TableParams params;
+  TableResult table;
+  ASSERT_TRUE(estimate.segment(first_cloud, params, table));
+  ASSERT_TRUE(table.found) << table.reason;
+  const Eigen::Vector3f held = params.up;
+  EXPECT_LT(angleDeg(held, first.up), 2.0f);
+
+  // The camera turned 5 deg, within up_tolerance_deg: frames 2 and 3 keep the held up and
+  // still find the table.
+  for (int frame = 2; frame <= 3; ++frame) {
+    TableParams turned_params;
+    ASSERT_TRUE(estimate.segment(turned_cloud, turned_params, table)) << frame;
+    EXPECT_TRUE(table.found) << frame << ": " << table.reason;
+    EXPECT_EQ(turned_params.up, held) << frame;
+  }
+  // Frame 4 estimates again and follows the camera.
+  TableParams fourth;
+  ASSERT_TRUE(estimate.segment(turned_cloud, fourth, table));
+  EXPECT_TRUE(table.found) << table.reason;
+  EXPECT_GT(angleDeg(fourth.up, held), 3.0f);
+  EXPECT_LT(angleDeg(fourth.up, turned.up), 2.0f);
+}
+
+TEST(UpEstimate, EstimatesAtOnceWhenTheHeldUpFindsNoTable) {
+  const sim::RenderedScene first = sceneAtPitch(40.0f), turned = sceneAtPitch(75.0f);
+  UpEstimate estimate(30);
+  TableParams params;
+  TableResult table;
+  ASSERT_TRUE(estimate.segment(xyz(first), params, table));
+  ASSERT_TRUE(table.found) << table.reason;
+  // 35 deg more down: the held up, beyond up_tolerance_deg, finds no table.
+  TableParams held_params;
+  held_params.up = params.up;
+  EXPECT_FALSE(TableSegmenter(held_params).segment(xyz(turned)).found);
+  TableParams turned_params;
+  ASSERT_TRUE(estimate.segment(xyz(turned), turned_params, table));
+  EXPECT_TRUE(table.found) << table.reason;
+  EXPECT_LT(angleDeg(turned_params.up, turned.up), 2.0f);
+}
+
+TEST(UpEstimate, SaysWhyWithoutAPlaneToTakeUpFrom) {
+  UpEstimate estimate;
+  TableParams params;
+  TableResult table;
+  EXPECT_FALSE(estimate.segment(std::make_shared<Cloud>(), params, table));
+  EXPECT_FALSE(table.found);
+  EXPECT_EQ(table.reason, "no large plane with the camera above it to take 'up' from");
 }

@@ -6,6 +6,7 @@
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/core/shape_estimator.h"
 #include "tabletop_shapes/core/table_segmentation.h"
+#include "tabletop_shapes/core/up_direction.h"
 
 namespace tabletop_shapes {
 
@@ -50,7 +51,8 @@ class Pipeline {
   PipelineParams params_;
   Preprocessor preprocessor_;
   ShapeEstimator estimator_;
-  CloudPtr filtered_;  // reused between frames
+  UpEstimate up_estimate_;  // auto_up: held between frames of the stream
+  CloudPtr filtered_;       // reused between frames
 };
 
 }  // namespace tabletop_shapes

@@ -36,4 +36,25 @@ struct UpCheck {
 UpCheck checkUpAgainstScene(const CloudConstPtr& cloud, const TableParams& params,
                             const TableResult& table);
 
+// "Up" estimated from the scene of a camera stream: estimateUp is a plane search over the whole
+// frame (as costly as the table search itself), and up moves only when the camera turns. So
+// the estimate is held and made again every `reestimate_frames` frames, and at once when the
+// held up finds no table (the camera turned past up_tolerance_deg). One per stream (a
+// Pipeline, a nodelet); a still camera gets the same up, table and objects as with an estimate
+// in every frame.
+class UpEstimate {
+ public:
+  explicit UpEstimate(int reestimate_frames = 30);
+
+  // The table of `cloud` with up from the scene; `params.up` is set to the up used. False, with
+  // table.reason saying why, when the scene shows no plane to take up from.
+  bool segment(const CloudConstPtr& cloud, TableParams& params, TableResult& table);
+
+ private:
+  int reestimate_frames_;
+  int frames_since_estimate_ = 0;
+  bool held_ = false;
+  Eigen::Vector3f up_ = Eigen::Vector3f::Zero();
+};
+
 }  // namespace tabletop_shapes
