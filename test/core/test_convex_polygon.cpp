@@ -1,0 +1,66 @@
+// The 2D convex hull (table hulls, footprints) against hulls known by construction, with the
+// many inner points and collinear edge points that the extreme-point filter drops.
+#include "tabletop_shapes/core/convex_polygon.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace tabletop_shapes;
+
+namespace {
+
+void expectHull(const std::vector<Eigen::Vector2f>& hull,
+                const std::vector<Eigen::Vector2f>& expected) {
+  ASSERT_EQ(hull.size(), expected.size());
+  for (size_t i = 0; i < hull.size(); ++i) {
+    EXPECT_EQ(hull[i], expected[i]) << "vertex " << i << ": " << hull[i].transpose();
+  }
+}
+
+}  // namespace
+
+TEST(ConvexHull2d, ASquareFullOfPointsIsItsFourCornersCounterClockwise) {
+  std::vector<Eigen::Vector2f> points;
+  // A 1.2 x 0.8 m table every 5 mm, edges included: the edge points are collinear.
+  for (int i = 0; i <= 240; ++i) {
+    for (int j = 0; j <= 160; ++j) points.emplace_back(0.3f + 0.005f * i, -0.4f + 0.005f * j);
+  }
+  const Eigen::Vector2f low_left = points.front(), high_right = points.back();
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(points);
+  expectHull(
+      hull, {low_left, {high_right.x(), low_left.y()}, high_right, {low_left.x(), high_right.y()}});
+}
+
+TEST(ConvexHull2d, ARandomDiscGetsItsRimPointsAndNothingInside) {
+  std::mt19937 random(3);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<Eigen::Vector2f> points;
+  // 64 points on a circle of 0.5 m, 20000 strictly inside it (radius <= 0.49 m).
+  std::vector<Eigen::Vector2f> rim;
+  for (int i = 0; i < 64; ++i) {
+    const float angle = static_cast<float>(2.0 * M_PI * i / 64.0);
+    rim.emplace_back(1.0f + 0.5f * std::cos(angle), 0.5f * std::sin(angle));
+  }
+  for (int i = 0; i < 20000; ++i) {
+    const float angle = static_cast<float>(2.0 * M_PI) * unit(random);
+    const float radius = 0.49f * std::sqrt(unit(random));
+    points.emplace_back(1.0f + radius * std::cos(angle), radius * std::sin(angle));
+  }
+  points.insert(points.begin() + 7000, rim.begin(), rim.end());
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(points);
+  // Counter-clockwise from the lowest x (the rim point at 180 deg).
+  std::vector<Eigen::Vector2f> expected;
+  for (int i = 0; i < 64; ++i) expected.push_back(rim[(32 + i) % 64]);
+  expectHull(hull, expected);
+  for (const Eigen::Vector2f& p : points) EXPECT_GE(insideDistance(hull, p), -1e-6f);
+}
+
+TEST(ConvexHull2d, DegenerateInputStaysDegenerate) {
+  EXPECT_TRUE(convexHull2d({}).empty());
+  std::vector<Eigen::Vector2f> line;
+  for (int i = 0; i < 50; ++i) line.emplace_back(0.01f * i, 0.02f * i);
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(line);
+  EXPECT_LT(hull.size(), 3u);
+}
