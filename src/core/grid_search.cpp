@@ -284,6 +284,48 @@ void GridSearch<PointT>::forEachNearestK(
 }
 
 template <typename PointT>
+void GridSearch<PointT>::forEachRadiusNeighbours(
+    double radius, const std::function<void(int, const pcl::Indices&)>& visit) const {
+  if (points_.empty() || !(radius >= 0.0)) return;
+  const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
+  const int reach = static_cast<int>(std::ceil(radius * inv_cell_));
+  std::vector<float> xs, ys, zs, squared;
+  std::vector<int> indices;
+  pcl::Indices neighbours;
+  auto& found = candidates;
+  for (size_t begin = 0; begin < points_.size();) {
+    const Entry& first = points_[begin];
+    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
+    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
+    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
+    const size_t end = find(keyOf(cx, cy, cz))->end;
+    xs.clear(), ys.clear(), zs.clear(), indices.clear();
+    for (int ring = 0; ring <= reach; ++ring) {
+      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+        xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
+      });
+    }
+    squared.resize(xs.size());
+    for (size_t i = begin; i < end; ++i) {
+      const Entry& q = points_[i];
+      for (size_t j = 0; j < xs.size(); ++j) {  // the same float arithmetic as radiusSearch
+        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+        squared[j] = dx * dx + dy * dy + dz * dz;
+      }
+      found.clear();
+      for (size_t j = 0; j < xs.size(); ++j) {
+        if (squared[j] < radius_sq) found.emplace_back(squared[j], indices[j]);
+      }
+      if (this->sorted_results_) std::sort(found.begin(), found.end());
+      neighbours.resize(found.size());
+      for (size_t j = 0; j < found.size(); ++j) neighbours[j] = found[j].second;
+      visit(q.index, neighbours);
+    }
+    begin = end;
+  }
+}
+
+template <typename PointT>
 std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius) const {
   std::vector<pcl::Indices> components;
   if (points_.empty() || !(radius >= 0.0)) return components;

@@ -46,6 +46,13 @@ class GridSearch : public pcl::search::Search<PointT> {
   void forEachNearestK(int k,
                        const std::function<void(int, const std::vector<float>&)>& visit) const;
 
+  // The neighbours of every point of the input within `radius` (squared distance < radius^2),
+  // as radiusSearch finds and orders them: visit(index, neighbour indices), points in no
+  // particular order. The same lists as one radiusSearch per point, cheaper: the candidates
+  // around each cell are gathered once for all the points in it, and the distances to them are
+  // one loop over flat arrays.
+  void forEachRadiusNeighbours(double radius,
+                               const std::function<void(int, const pcl::Indices&)>& visit) const;
   // The connected components of the input's points linked when closer than `radius` (squared
   // distance < radius^2, as radiusSearch): the input indices of each, ascending, components in
   // the order of their smallest index, as pcl::extractEuclideanClusters finds them (before it

@@ -1,0 +1,76 @@
+// The grid neighbour search against neighbours found by comparing every pair of points.
+#include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/types.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+using namespace tabletop_shapes;
+
+namespace {
+
+// A noisy curved surface sampled every ~5 mm (as the core's voxel clouds), with a few sparse
+// points around it and one NaN point.
+CloudPtr surfaceCloud() {
+  auto cloud = std::make_shared<Cloud>();
+  std::mt19937 random(11);
+  std::normal_distribution<float> noise(0.0f, 0.001f);
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 30; ++j) {
+      const float x = -0.1f + 0.005f * i, y = 0.2f + 0.005f * j;
+      cloud->push_back(Point(x, y, 1.0f + 2.0f * x * x + noise(random)));
+    }
+  }
+  std::uniform_real_distribution<float> around(-0.15f, 0.15f);
+  for (int i = 0; i < 30; ++i)
+    cloud->push_back(Point(around(random), 0.27f + around(random), 1.1f));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  cloud->push_back(Point(nan, nan, nan));
+  cloud->is_dense = false;
+  return cloud;
+}
+
+// Indices within `radius` of point i (squared distance < radius^2), nearest first, ties by index.
+pcl::Indices bruteForce(const Cloud& cloud, size_t i, float radius) {
+  std::vector<std::pair<float, int>> found;
+  const Point& q = cloud[i];
+  for (size_t j = 0; j < cloud.size(); ++j) {
+    const float dx = cloud[j].x - q.x, dy = cloud[j].y - q.y, dz = cloud[j].z - q.z;
+    const float d = dx * dx + dy * dy + dz * dz;
+    if (d < radius * radius) found.emplace_back(d, static_cast<int>(j));
+  }
+  std::sort(found.begin(), found.end());
+  pcl::Indices indices;
+  for (const auto& f : found) indices.push_back(f.second);
+  return indices;
+}
+
+}  // namespace
+
+TEST(GridSearch, RadiusNeighboursOfEveryPointAreThoseOfAPairwiseSearch) {
+  const CloudPtr cloud = surfaceCloud();
+  for (const float radius : {0.02f, 0.012f}) {
+    GridSearch<Point> search(0.02f);
+    search.setInputCloud(cloud);
+    std::vector<int> visits(cloud->size(), 0);
+    size_t neighbours_seen = 0;
+    search.forEachRadiusNeighbours(radius, [&](int i, const pcl::Indices& neighbours) {
+      ++visits[i];
+      neighbours_seen += neighbours.size();
+      EXPECT_EQ(neighbours, bruteForce(*cloud, i, radius)) << "point " << i << ", r " << radius;
+      pcl::Indices single;
+      std::vector<float> squared;
+      search.radiusSearch((*cloud)[i], radius, single, squared);
+      EXPECT_EQ(neighbours, single) << "point " << i;
+    });
+    // Every finite point once, the NaN point never.
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+    EXPECT_EQ(visits.back(), 0);
+    // A 2 cm disc on a 5 mm grid holds ~50 points: the test compares real neighbourhoods.
+    EXPECT_GT(neighbours_seen, 20u * cloud->size() * radius / 0.02f);
+  }
+}
