@@ -1,7 +1,9 @@
 // The core's rows of issue 16's bad-input matrix: the whole pipeline on clouds a robot can
-// meet or be sent, each with its known answer (table or not, and why; the objects), and in
-// bounded time. Scenes are built in the table frame (z up, the table at z = 0), seen from
-// kCamera, and run in the camera-centred frame (the camera at the origin, as a sensor's cloud).
+// meet or be sent, each with its known answer (table or not, and why; the objects). Times are
+// printed, not asserted: wall time under load or a sanitizer says nothing about the code, and
+// speed is measured by make benchmark-speed. Scenes are built in the table frame (z up, the table
+// at z = 0), seen from kCamera, and run in the camera-centred frame (the camera at the origin, as a
+// sensor's cloud).
 #include "tabletop_shapes/core/pipeline.h"
 
 #include "synthetic.h"
@@ -65,7 +67,7 @@ Outcome run(const Cloud& table_frame_cloud) {
   return outcome;
 }
 
-Outcome expectNoTable(const Cloud& cloud, const std::string& reason, double max_seconds = 10.0) {
+Outcome expectNoTable(const Cloud& cloud, const std::string& reason) {
   const Outcome outcome = run(cloud);
   EXPECT_FALSE(outcome.result.table.found)
       << "normal " << outcome.result.table.plane.normal.transpose() << " inliers "
@@ -73,7 +75,6 @@ Outcome expectNoTable(const Cloud& cloud, const std::string& reason, double max_
   EXPECT_NE(outcome.result.table.reason.find(reason), std::string::npos)
       << outcome.result.table.reason;
   EXPECT_TRUE(outcome.result.objects.empty());
-  EXPECT_LT(outcome.seconds, max_seconds);
   return outcome;
 }
 
@@ -145,7 +146,7 @@ TEST(BadInputMatrix, AMillionRandomPoints) {
   Cloud cloud;
   cloud.reserve(1000000);
   for (int i = 0; i < 1000000; ++i) cloud.push_back(Point(u(rng), 1.0f + u(rng), u(rng)));
-  expectNoTable(cloud, "scattered points, not a surface", 30.0);  // as the other large rows
+  expectNoTable(cloud, "scattered points, not a surface");
 }
 
 // A plane as noisy as a Kinect v1 sees one at ~2.7 m (sigma 8 mm) is still a surface.
@@ -200,7 +201,6 @@ TEST(BadInputMatrix, ThirtyTouchingObjects) {
   ASSERT_TRUE(outcome.result.table.found);
   EXPECT_GE(outcome.result.objects.size(), 1u);
   EXPECT_LE(outcome.result.objects.size(), 30u);
-  EXPECT_LT(outcome.seconds, 30.0);
 }
 
 TEST(BadInputMatrix, ObjectOverhangingTheTableEdge) {
@@ -216,8 +216,8 @@ TEST(BadInputMatrix, ObjectOverhangingTheTableEdge) {
   }
 }
 
-// 5 million points (a 0.3 mm scan of the table with a box): processed in bounded time, with
-// the same answer as the usual density.
+// 5 million points (a 0.3 mm scan of the table with a box): processed, with the same answer as
+// the usual density.
 TEST(BadInputMatrix, FiveMillionPoints) {
   Cloud cloud = table(0.0003f);
   Sampler dense = camera();
@@ -229,7 +229,6 @@ TEST(BadInputMatrix, FiveMillionPoints) {
   ASSERT_EQ(outcome.result.objects.size(), 1u);
   EXPECT_EQ(outcome.result.objects[0].type, ShapeType::Cube)
       << shapeTypeName(outcome.result.objects[0].type) << " " << outcome.result.objects[0].reason;
-  EXPECT_LT(outcome.seconds, 30.0);
   std::printf("5 million points: %.2f s\n", outcome.seconds);
 }
 

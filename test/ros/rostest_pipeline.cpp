@@ -146,6 +146,12 @@ class PipelineTest : public ::testing::Test {
     std::lock_guard<std::mutex> lock(mutex_);
     return objects_.at(index);
   }
+  // The ground truth published with the frame stamped `stamp` (null while not received).
+  ObjectsConstPtr truthFor(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto found = truth_.find(stamp);
+    return found == truth_.end() ? ObjectsConstPtr() : found->second;
+  }
   // A diagnostic value of a stage as a number (NAN while not reported yet).
   double diagnostic(const std::string& stage, const std::string& key) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -205,12 +211,7 @@ TEST_F(PipelineTest, BagReplayObjectsMatchGroundTruth) {
       [&]() -> bool {
         while (next < objectsReceived() && evaluated < min_frames) {
           const ObjectsConstPtr result = objectsAt(next++);
-          ObjectsConstPtr truth;
-          {
-            std::lock_guard<std::mutex> lock(mutex_);
-            const auto found = truth_.find(result->header.stamp);
-            if (found != truth_.end()) truth = found->second;
-          }
+          const ObjectsConstPtr truth = truthFor(result->header.stamp);
           if (!truth) {
             ADD_FAILURE() << "no ground truth with the stamp of objects " << result->header.stamp;
             continue;
@@ -316,12 +317,7 @@ TEST_F(PipelineTest, BorderBoxIsTruncated) {
       [&]() -> bool {
         while (next < objectsReceived() && evaluated < min_frames) {
           const ObjectsConstPtr result = objectsAt(next++);
-          ObjectsConstPtr truth;
-          {
-            std::lock_guard<std::mutex> lock(mutex_);
-            const auto found = truth_.find(result->header.stamp);
-            if (found != truth_.end()) truth = found->second;
-          }
+          const ObjectsConstPtr truth = truthFor(result->header.stamp);
           if (!truth) continue;
           ++evaluated;
           SCOPED_TRACE("frame stamped " + std::to_string(result->header.stamp.toSec()));
