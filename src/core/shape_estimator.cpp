@@ -10,6 +10,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace tabletop_shapes {
@@ -289,6 +290,54 @@ void markTruncation(const Cuts& cuts, const Plane& table, ShapeFit& fit) {
   }
 }
 
+// Height slices in which trimEdgeBleed finds a cluster's sides [m]: two voxels.
+constexpr float kBleedSlice = 0.01f;
+
+// The cluster without the points an active-stereo camera smeared beyond its silhouette
+// (ShapeEstimatorParams::edge_bleed_px): in every height slice, those within `bleed_px` pixels
+// (at the cluster's depth) of the slice's sides across the line of sight. The smear takes the
+// near surface's depth, so those points stand beside the object, not on it. A side cut by the
+// image border keeps its points (nothing was smeared there), as does a slice no wider than the
+// band on both sides. The cluster itself when nothing is to be trimmed.
+CloudConstPtr trimEdgeBleed(const CloudConstPtr& cluster, const Plane& table, float bleed_px,
+                            const ViewBounds* view, const Cuts& cuts) {
+  if (!(bleed_px > 0.0f) || !view || !view->known || cluster->empty()) return cluster;
+  const Eigen::Vector3f up = table.normal.normalized();
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : cluster->points) centroid += p.getVector3fMap();
+  centroid /= static_cast<float>(cluster->size());
+  const Eigen::Vector3f sight = centroid - up.dot(centroid) * up;  // horizontal
+  if (!(centroid.z() > 0.0f) || sight.norm() < 1e-6f) return cluster;
+  const Eigen::Vector3f across = up.cross(sight.normalized());
+  bool cut_side[2] = {false, false};  // along -across, +across
+  for (const Eigen::Vector3f& d : cuts.directions) {
+    cut_side[0] |= d.dot(across) < -kAlong;
+    cut_side[1] |= d.dot(across) > kAlong;
+  }
+  const float band = bleed_px * view->pixel_tan * centroid.z();
+  std::map<int, Eigen::Vector2f> sides;  // slice -> lowest, highest coordinate across
+  auto sliceOf = [&](const Point& p) {
+    return static_cast<int>(std::floor(up.dot(p.getVector3fMap()) / kBleedSlice));
+  };
+  for (const auto& p : cluster->points) {
+    const float x = across.dot(p.getVector3fMap());
+    auto [it, inserted] = sides.emplace(sliceOf(p), Eigen::Vector2f(x, x));
+    if (!inserted) it->second = {std::min(it->second[0], x), std::max(it->second[1], x)};
+  }
+  auto trimmed = std::make_shared<Cloud>();
+  trimmed->header = cluster->header;
+  for (const auto& p : cluster->points) {
+    const Eigen::Vector2f& side = sides[sliceOf(p)];
+    const float x = across.dot(p.getVector3fMap());
+    if (side[1] - side[0] > 2.0f * band &&
+        ((!cut_side[0] && x < side[0] + band) || (!cut_side[1] && x > side[1] - band))) {
+      continue;
+    }
+    trimmed->push_back(p);
+  }
+  return trimmed->size() >= 10 ? trimmed : cluster;
+}
+
 // The solid of a cluster of at least 10 points (ShapeEstimator::estimate).
 ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& cluster,
                        const Plane& table, const Cuts& cuts) {
@@ -340,7 +389,8 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
                    : unknown(Cloud(), "no cluster");
   }
   const Cuts cuts = findCuts(*cluster, view);
-  ShapeFit fit = estimateSolid(params_, cluster, table, cuts);
+  ShapeFit fit = estimateSolid(
+      params_, trimEdgeBleed(cluster, table, params_.edge_bleed_px, view, cuts), table, cuts);
   markTruncation(cuts, table, fit);
   return fit;
 }
