@@ -19,7 +19,7 @@ double msSince(Clock::time_point start) {
 // A bottle's neck (with its cap) meets the shoulder at a concave seam: the split
 // (splitAtConcaveSeams) cuts it off and supportPlanes stands it on the shoulder, a round solid
 // of its own (on rendered RealSense scenes, 15 of 40 such necks, r 1.7-2.3 cm, h 4-6 cm, and
-// their bottles 4-6 cm short). A round solid standing on a wider round one, on its axis (within
+// their bottles 4-6 cm short). A solid standing on a wider round one, on its axis (within
 // kNeckAxisOffset of the lower one's radius) and starting within kNeckGap of its top, is that
 // neck: the two clusters are one object again, fitted as one on the lower one's support. A box
 // below (a can standing on a box) keeps them apart.
@@ -31,16 +31,20 @@ constexpr float kNeckLift = 0.01f;
 bool isRound(const ShapeFit& fit) {
   return fit.ok && (fit.type == ShapeType::Cylinder || fit.type == ShapeType::Cone);
 }
+// Half the widest horizontal extent of a fitted solid.
 float widestRadius(const ShapeFit& fit) {
+  if (fit.type == ShapeType::Cube) return 0.5f * fit.dimensions.head<2>().maxCoeff();
   return fit.type == ShapeType::Cone ? std::max(fit.radius_bottom, fit.radius_top) : fit.radius;
 }
 
-// The index of the round solid `neck` (a round solid, lifted) is the neck of, or -1.
+// The index of the round solid whose neck fits[neck] is, or -1. The neck may be any fitted solid
+// resting above the table: a neck 2-3 cm across came out a box too.
 int bodyOfNeck(const std::vector<ShapeFit>& fits, size_t neck, const Plane& table) {
   const ShapeFit& upper = fits[neck];
   const Eigen::Vector3f up = table.normal.normalized();
-  const float bottom = table.signedDistance(upper.center) - 0.5f * upper.height;
-  if (!isRound(upper) || !(bottom > kNeckLift)) return -1;
+  const float height = upper.type == ShapeType::Cube ? upper.dimensions.z() : upper.height;
+  const float bottom = table.signedDistance(upper.center) - 0.5f * height;
+  if (!upper.ok || !(bottom > kNeckLift)) return -1;
   for (size_t i = 0; i < fits.size(); ++i) {
     const ShapeFit& lower = fits[i];
     if (i == neck || !isRound(lower) || widestRadius(upper) >= widestRadius(lower)) continue;
