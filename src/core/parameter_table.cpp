@@ -115,6 +115,9 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
   real("shapes", "max_overreach", shapes.max_overreach, 0.0, 0.1,
        "a fitted solid may reach this far beyond its points (top, footprint, round diameter "
        "across the line of sight) or it is rejected [m]");
+  real("shapes", "edge_bleed_px", shapes.edge_bleed_px, 0.0, 20.0,
+       "the camera smears a near surface's depth this many pixels beyond its silhouette "
+       "(RealSense D4xx: 3, Kinect: 0); that band of a cluster's sides is left out of the fit");
 }
 
 bool setParameter(PipelineParams& params, const std::string& stage, const std::string& name,

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace tabletop_shapes {
@@ -234,6 +235,29 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
   return "";
 }
 
+// With a camera that smears edges (ShapeEstimatorParams::edge_bleed_px), a thin round object's
+// depth noise (4 mm at 1 m) is as large as its radius: its circle's curvature is noise (an
+// 18 mm marker's circles came out 12-46 mm across), its width across the line of sight is not.
+// A cylinder wider than its points there (the width rule of overreach()) is narrowed to them:
+// centred between its points across the line of sight, its near side kept, its radius half
+// their width. A cut side or a cone is left to the rule.
+ShapeFit narrowToPoints(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance,
+                        const Cuts& cuts) {
+  if (!fit.ok || fit.type != ShapeType::Cylinder || !cuts.directions.empty()) return fit;
+  const Eigen::Vector3f up = table.normal.normalized();
+  const Eigen::Vector3f sight = fit.center - up.dot(fit.center) * up;  // horizontal
+  if (sight.norm() < 1e-6f) return fit;
+  const Eigen::Vector3f forward = sight.normalized(), across = up.cross(forward);
+  const Eigen::Vector2f width = extentAlong(cluster, across);
+  const float half_width = 0.5f * (width[1] - width[0]);
+  if (fit.radius * kSilhouetteFraction <= half_width + 0.5f * tolerance) return fit;
+  const float near_side = forward.dot(fit.center) - fit.radius;
+  fit.center += (0.5f * (width[0] + width[1]) - across.dot(fit.center)) * across +
+                (near_side + half_width - forward.dot(fit.center)) * forward;
+  fit.radius = half_width;
+  return fit;
+}
+
 ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance,
                          float rim_band, const Cuts& cuts) {
   if (!fit.ok) return fit;
@@ -289,6 +313,57 @@ void markTruncation(const Cuts& cuts, const Plane& table, ShapeFit& fit) {
   }
 }
 
+// Height slices in which trimEdgeBleed finds a cluster's sides [m]: two voxels.
+constexpr float kBleedSlice = 0.01f;
+
+// The cluster without the points an active-stereo camera smeared beyond its silhouette
+// (ShapeEstimatorParams::edge_bleed_px): in every height slice, those within `bleed_px` pixels
+// (at the cluster's depth, less half a voxel) of the slice's sides across the line of sight. The
+// smear takes the near surface's depth, so those points stand beside the object, not on it. A side
+// cut by the image border keeps its points (nothing was smeared there), as does a slice no wider
+// than the band on both sides. The cluster itself when nothing is to be trimmed.
+CloudConstPtr trimEdgeBleed(const CloudConstPtr& cluster, const Plane& table, float bleed_px,
+                            const ViewBounds* view, const Cuts& cuts) {
+  if (!(bleed_px > 0.0f) || !view || !view->known || cluster->empty()) return cluster;
+  const Eigen::Vector3f up = table.normal.normalized();
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : cluster->points) centroid += p.getVector3fMap();
+  centroid /= static_cast<float>(cluster->size());
+  const Eigen::Vector3f sight = centroid - up.dot(centroid) * up;  // horizontal
+  if (!(centroid.z() > 0.0f) || sight.norm() < 1e-6f) return cluster;
+  const Eigen::Vector3f across = up.cross(sight.normalized());
+  bool cut_side[2] = {false, false};  // along -across, +across
+  for (const Eigen::Vector3f& d : cuts.directions) {
+    cut_side[0] |= d.dot(across) < -kAlong;
+    cut_side[1] |= d.dot(across) > kAlong;
+  }
+  // The voxel centroids at a side lie up to half a voxel inside the smeared samples.
+  const float band =
+      std::max(0.0f, bleed_px * view->pixel_tan * centroid.z() - 0.5f * view->point_spacing);
+  if (!(band > 0.0f)) return cluster;
+  std::map<int, Eigen::Vector2f> sides;  // slice -> lowest, highest coordinate across
+  auto sliceOf = [&](const Point& p) {
+    return static_cast<int>(std::floor(up.dot(p.getVector3fMap()) / kBleedSlice));
+  };
+  for (const auto& p : cluster->points) {
+    const float x = across.dot(p.getVector3fMap());
+    auto [it, inserted] = sides.emplace(sliceOf(p), Eigen::Vector2f(x, x));
+    if (!inserted) it->second = {std::min(it->second[0], x), std::max(it->second[1], x)};
+  }
+  auto trimmed = std::make_shared<Cloud>();
+  trimmed->header = cluster->header;
+  for (const auto& p : cluster->points) {
+    const Eigen::Vector2f& side = sides[sliceOf(p)];
+    const float x = across.dot(p.getVector3fMap());
+    if (side[1] - side[0] > 2.0f * band &&
+        ((!cut_side[0] && x < side[0] + band) || (!cut_side[1] && x > side[1] - band))) {
+      continue;
+    }
+    trimmed->push_back(p);
+  }
+  return trimmed->size() >= 10 ? trimmed : cluster;
+}
+
 // The solid of a cluster of at least 10 points (ShapeEstimator::estimate).
 ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& cluster,
                        const Plane& table, const Cuts& cuts) {
@@ -302,6 +377,8 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
                                     ? fitCube(normals, table, params.cube)
                                     : fitRoundObject(normals, table, params.cylinder, params.cone),
                                 normals.size());
+    if (params.edge_bleed_px > 0.0f)
+      fit = narrowToPoints(fit, *cluster, table, params.max_overreach, cuts);
     fit = rejectOverreach(fit, *cluster, table, params.max_overreach, params.cylinder.top_margin,
                           cuts);
     return rejectUnexplained(fit, normals, *cluster, table);
@@ -340,7 +417,8 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
                    : unknown(Cloud(), "no cluster");
   }
   const Cuts cuts = findCuts(*cluster, view);
-  ShapeFit fit = estimateSolid(params_, cluster, table, cuts);
+  ShapeFit fit = estimateSolid(
+      params_, trimEdgeBleed(cluster, table, params_.edge_bleed_px, view, cuts), table, cuts);
   markTruncation(cuts, table, fit);
   return fit;
 }

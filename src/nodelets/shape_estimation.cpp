@@ -16,6 +16,7 @@
 //     transform skips the frame with a throttled warning
 //   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
 #include "tabletop_shapes/core/shape_estimator.h"
+#include "tabletop_shapes/core/neck_join.h"
 #include "tabletop_shapes/core/support.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
@@ -121,8 +122,9 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     objects.table_found = bridge::tableFound(*table);
     if (!objects.table_found) objects.reason = "no table: " + table->reason;
     if (objects.table_found) {
-      const std::vector<CloudPtr> parts = splitClusters(*clusters);
-      const std::vector<Plane> supports = supportPlanes(parts, bridge::planeFromMsg(*table));
+      std::vector<CloudPtr> parts = splitClusters(*clusters);
+      const Plane table_plane = bridge::planeFromMsg(*table);
+      std::vector<Plane> supports = supportPlanes(parts, table_plane);
       ViewBounds view;  // unknown for an unorganised input cloud: nothing is cut then
       const bool view_came = viewOf(objects.header.stamp, view);
       monitor_->setWarning("view", view_came ? ""
@@ -130,7 +132,9 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
                                                    view_subscriber_.getTopic() +
                                                    ": objects cut by the image border are not "
                                                    "flagged truncated");
-      for (const ShapeFit& fit : estimator_.estimateAll(parts, supports, &view)) {
+      std::vector<ShapeFit> fits = estimator_.estimateAll(parts, supports, &view);
+      rejoinNecks(estimator_, table_plane, view, parts, supports, fits);
+      for (const ShapeFit& fit : fits) {
         bridge::appendObject(fit, objects.header, objects);
       }
     }

@@ -213,6 +213,9 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally,
   PipelineParams params = options.params;
   params.auto_up = options.auto_up;
   params.table.up = scene.up;  // what tf2 would give a robot
+  // The camera's edge smear, as a robot's configuration for its camera would give it.
+  if (spec.noise.enabled && spec.noise.edge_bleeding && params.shapes.edge_bleed_px == 0.0f)
+    params.shapes.edge_bleed_px = static_cast<float>(spec.noise.edge_bleed_px);
   if (camera_height_known) params.table.camera_height = scene.table_plane.d;
   Pipeline pipeline(params);
   const SceneResult result = pipeline.process(*scene.cloud);

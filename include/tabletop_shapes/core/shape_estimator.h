@@ -17,6 +17,11 @@ struct ShapeEstimatorParams {
   // table and up for any solid, across the line of sight for the diameter of a round one
   // (its back is hidden). A model breaking this is rejected with the reason.
   float max_overreach = 0.005f;
+  // Active-stereo cameras (RealSense D4xx) smear a near surface's depth over up to this many
+  // pixels beyond its silhouette (their correlation window: "foreground fattening"); 0 for
+  // structured light (Kinect v1, Xtion). Points within that band of a cluster's sides, across
+  // the line of sight, are left out of the fit: an 18 mm marker's points spanned 30-36 mm.
+  float edge_bleed_px = 0.0f;
 };
 
 class ShapeEstimator {
