@@ -760,9 +760,10 @@ ShapeFit lyingCylinderAlong(const Vec3d& axis, const Vec3d& up, double table_d,
   fit.type = ShapeType::Cylinder;
   const Vec3d across = up.cross(axis);
   std::vector<Vec2d> section;
-  std::vector<double> along(positions.size());
+  std::vector<double> along(positions.size()), end_disc;
   for (size_t i = 0; i < positions.size(); ++i) {
     along[i] = axis.dot(positions[i]);
+    if (normals[i].dot(axis) >= kEndDiscMinCos) end_disc.push_back(along[i]);
     if (std::abs(normals[i].dot(axis)) >= kEndDiscMinCos) continue;
     section.emplace_back(across.dot(positions[i]), up.dot(positions[i]) + table_d);
   }
@@ -780,8 +781,13 @@ ShapeFit lyingCylinderAlong(const Vec3d& axis, const Vec3d& up, double table_d,
       Eigen::Vector3d(initial.center.x(), initial.center.y(), initial.radius),
       static_cast<int>(section.size()), std::max(0, params.max_refine_iterations));
   const double radius = std::abs(trimmed.x[2]);
+  // The end facing the camera like an upright cylinder's top: from its disc when seen (a real
+  // tin on its rim, its disc a degree or two off square to the fitted axis, spread 8 cm along
+  // it), else from the wall.
   const double low = quantile(along, 1.0 - kHeightQuantile),
-               high = quantile(along, kHeightQuantile);
+               high = static_cast<int>(end_disc.size()) >= kMinTopPoints
+                          ? topHeight(end_disc)
+                          : quantile(along, kHeightQuantile);
   fit.radius = static_cast<float>(radius);
   fit.height = static_cast<float>(high - low);
   fit.points = trimmed.inlier_count;

@@ -279,6 +279,23 @@ TEST(ShapeEstimator, LyingCanIsALyingCylinder) {
   }
 }
 
+TEST(ShapeEstimator, TinOnItsRimIsALyingCylinder) {
+  // A cookie tin (d 19 cm, 8 cm deep) standing on its rim, its lid towards the camera (OSD
+  // learn34, 37, 38): shorter than wide, the lid's points outnumber the curved band's. Its
+  // length is taken at the lid like an upright can's height at its top.
+  const float radius = 0.095f, length = 0.08f;
+  for (float yaw : {1.2f, 1.57f, 1.9f}) {  // the camera looks along +y: the axis faces it
+    synthetic::Sampler sampler = synthetic::voxelGridSampler();
+    const CameraView view =
+        inOpticalFrame(synthetic::lyingCylinder(radius, length, {0.0f, 0.0f}, yaw, sampler),
+                       sampler.camera, Eigen::Vector3f(0, 0, radius));
+    const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table);
+    const std::string what = "tin on its rim yaw " + std::to_string(yaw);
+    printFit(what.c_str(), fit);
+    expectLyingCylinder(fit, view, radius, length, yaw, radius, what);
+  }
+}
+
 TEST(ShapeEstimator, HalfHiddenLyingCanIsALyingCylinder) {
   // A Pringles can (r 37 mm, 23 cm long) lying behind a box, which hides its lower half: only
   // the upper part of its curved wall is seen (learn30, learn32). Its circle still follows from
