@@ -149,6 +149,41 @@ Cuts findCuts(const Cloud& cluster, const ViewBounds* view) {
 // A cut direction has a component along a direction beyond this (~17 degrees off square).
 constexpr float kAlong = 0.3f;
 
+// A round solid whose axis is nearer the table than up (fitLyingCylinder).
+bool isLying(const ShapeFit& fit, const Eigen::Vector3f& up) {
+  return fit.type != ShapeType::Cube && std::abs(fit.axis().dot(up)) < std::cos(kPi / 4);
+}
+
+// overreach() of a lying cylinder below its top: its ends beyond its points along the axis
+// (unless cut there), and its side facing the camera across the axis, as far as the wall is in
+// view (kSilhouetteFraction), in front of its points (its far side is hidden). `beyond` is
+// overreach()'s footprint check.
+template <typename Beyond>
+std::string lyingOverreach(const ShapeFit& fit, const Cloud& cluster, float tolerance,
+                           const Cuts& cuts, const Beyond& beyond) {
+  const Eigen::Vector3f axis = fit.axis();
+  const auto cut_along = [&](const Eigen::Vector3f& direction) {
+    return cuts.near || std::any_of(cuts.directions.begin(), cuts.directions.end(),
+                                    [&](const Eigen::Vector3f& d) {
+                                      return std::abs(d.dot(direction)) > kAlong;
+                                    });
+  };
+  if (!cut_along(axis)) {
+    std::string why = beyond(axis, 0.5f * fit.height, "length");
+    if (!why.empty()) return why;
+  }
+  Eigen::Vector3f across = fit.orientation * Eigen::Vector3f::UnitY();
+  if (across.dot(-fit.center) < 0.0f) across = -across;  // towards the camera
+  if (cut_along(across)) return "";
+  const float near_side = across.dot(fit.center) + fit.radius * kSilhouetteFraction;
+  const float nearest = extentAlong(cluster, across)[1];
+  if (near_side > nearest + tolerance) {
+    return "lying cylinder near side " + formatMetres(near_side - nearest) +
+           " m in front of its points";
+  }
+  return "";
+}
+
 // Empty when the solid stays within `tolerance` of the cluster's points, else why not: its top
 // above their highest point; a box's footprint beyond their extent along its edges; a round
 // solid's diameter (the part in view, kSilhouetteFraction) wider than they are across the line
@@ -162,8 +197,11 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
   const Eigen::Vector3f up = table.normal.normalized();
   const Eigen::Vector2f heights = extentAlong(cluster, up);
   const float table_height = -table.d / table.normal.norm();
-  const float solid_top = up.dot(fit.center) - table_height +
-                          0.5f * (fit.type == ShapeType::Cube ? fit.dimensions.z() : fit.height);
+  const bool lying = isLying(fit, up);
+  const float half_height = fit.type == ShapeType::Cube ? 0.5f * fit.dimensions.z()
+                            : lying                     ? fit.radius
+                                                        : 0.5f * fit.height;
+  const float solid_top = up.dot(fit.center) - table_height + half_height;
   const float points_top = heights[1] - table_height;
   const std::string name = shapeTypeName(fit.type);
   if (solid_top > points_top + tolerance) {
@@ -190,6 +228,7 @@ std::string overreach(const ShapeFit& fit, const Cloud& cluster, const Plane& ta
     }
     return "";
   }
+  if (lying) return lyingOverreach(fit, cluster, tolerance, cuts, beyond);
   const float radius =
       fit.type == ShapeType::Cone ? std::max(fit.radius_bottom, fit.radius_top) : fit.radius;
   // Its points end where the wall turns beyond 70 degrees from the camera.
@@ -245,6 +284,7 @@ ShapeFit narrowToPoints(ShapeFit fit, const Cloud& cluster, const Plane& table, 
                         const Cuts& cuts) {
   if (!fit.ok || fit.type != ShapeType::Cylinder || !cuts.directions.empty()) return fit;
   const Eigen::Vector3f up = table.normal.normalized();
+  if (std::abs(fit.axis().dot(up)) < 0.9f) return fit;  // a lying cylinder's width is its length
   const Eigen::Vector3f sight = fit.center - up.dot(fit.center) * up;  // horizontal
   if (sight.norm() < 1e-6f) return fit;
   const Eigen::Vector3f forward = sight.normalized(), across = up.cross(forward);
@@ -295,8 +335,7 @@ ShapeFit rejectUnexplained(ShapeFit fit, const NormalCloud& normals, const Cloud
 }
 
 // Marks a cut solid truncated: its extents along the cut directions are lower bounds.
-void markTruncation(const Cuts& cuts, const Plane& table, ShapeFit& fit) {
-  const Eigen::Vector3f up = table.normal.normalized();
+void markTruncation(const Cuts& cuts, ShapeFit& fit) {
   for (const Eigen::Vector3f& d : cuts.directions) {
     fit.truncated = true;
     if (fit.type == ShapeType::Cube) {
@@ -304,11 +343,12 @@ void markTruncation(const Cuts& cuts, const Plane& table, ShapeFit& fit) {
         fit.lower_bound[axis] |=
             std::abs(d.dot(fit.orientation * Eigen::Vector3f::Unit(axis))) > kAlong;
       }
-    } else {
-      const bool across = (d - d.dot(up) * up).norm() > kAlong;
+    } else {  // radius across the axis, height (length) along it, upright or lying
+      const Eigen::Vector3f axis = fit.axis();
+      const bool across = (d - d.dot(axis) * axis).norm() > kAlong;
       fit.lower_bound[0] |= across;
       fit.lower_bound[1] |= across;
-      fit.lower_bound[2] |= std::abs(d.dot(up)) > kAlong;
+      fit.lower_bound[2] |= std::abs(d.dot(axis)) > kAlong;
     }
   }
 }
@@ -372,16 +412,18 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   if (normals.size() < 10) return fallback(*cluster, table, "too few points with a normal");
 
   const Prediction prediction = predictShape(normals, params.predictor);
-  auto fitAs = [&](ShapeType type) {
-    ShapeFit fit = checkSupport(type == ShapeType::Cube
-                                    ? fitCube(normals, table, params.cube)
-                                    : fitRoundObject(normals, table, params.cylinder, params.cone),
-                                normals.size());
+  auto checked = [&](const ShapeFit& model) {
+    ShapeFit fit = checkSupport(model, normals.size());
     if (params.edge_bleed_px > 0.0f)
       fit = narrowToPoints(fit, *cluster, table, params.max_overreach, cuts);
     fit = rejectOverreach(fit, *cluster, table, params.max_overreach, params.cylinder.top_margin,
                           cuts);
     return rejectUnexplained(fit, normals, *cluster, table);
+  };
+  auto fitAs = [&](ShapeType type) {
+    return checked(type == ShapeType::Cube
+                       ? fitCube(normals, table, params.cube)
+                       : fitRoundObject(normals, table, params.cylinder, params.cone));
   };
   const ShapeType first =
       prediction.guess == ShapeType::Cube ? ShapeType::Cube : ShapeType::Cylinder;
@@ -392,19 +434,26 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   // 0.8 mm, and a cylinder on the sides of a 16.7 x 5.6 x 7.9 cm box at 1.4 m had its own rmse
   // at 1.3 mm. The model that explains the points as seen better wins; the guess only orders
   // the reasons of a failure.
+  // Beyond the paper, a cylinder lying on its side competes too: real cans and tins lie on the
+  // table or stand on their rim (OSD learn30-43), and a box around them was all we had.
   const ShapeFit guessed = fitAs(first);
   const ShapeFit other = fitAs(second);
-  if (guessed.ok && other.ok) {
-    return visibleSurfaceResidual(other, normals) < visibleSurfaceResidual(guessed, normals)
-               ? other
-               : guessed;
+  const ShapeFit lying = checked(fitLyingCylinder(normals, table, params.cylinder));
+  const ShapeFit* best = nullptr;
+  float best_residual = std::numeric_limits<float>::infinity();
+  for (const ShapeFit* fit : {&guessed, &other, &lying}) {
+    if (!fit->ok) continue;
+    const float residual = visibleSurfaceResidual(*fit, normals);
+    if (!best || residual < best_residual) {
+      best = fit;
+      best_residual = residual;
+    }
   }
-  if (guessed.ok) return guessed;
-  if (other.ok) return other;
+  if (best) return *best;
 
   std::ostringstream reason;
   reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
-         << shapeTypeName(second) << ": " << other.reason;
+         << shapeTypeName(second) << ": " << other.reason << "; lying cylinder: " << lying.reason;
   return fallback(*cluster, table, reason.str());
 }
 
@@ -419,7 +468,7 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
   const Cuts cuts = findCuts(*cluster, view);
   ShapeFit fit = estimateSolid(
       params_, trimEdgeBleed(cluster, table, params_.edge_bleed_px, view, cuts), table, cuts);
-  markTruncation(cuts, table, fit);
+  markTruncation(cuts, fit);
   return fit;
 }
 

@@ -29,6 +29,13 @@ ShapeFit fitCone(const NormalCloud& object, const Plane& table, const CylinderPa
 ShapeFit fitRoundObject(const NormalCloud& object, const Plane& table,
                         const CylinderParams& cylinder, const ConeParams& cone);
 
+// A cylinder lying on its side (a can, a tin on its rim): axis horizontal, along the principal
+// direction of the normals that gives the closer circle through the side wall in the vertical
+// plane across it; length = the points' extent along the axis. The axis points towards the
+// camera (origin). Rejected (with the reason) when its bottom sinks into the table beyond noise.
+ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
+                          const CylinderParams& params);
+
 // Distance [m] of `point` to the surface of the fitted cylinder or truncated cone `round` (side
 // wall, top or bottom disc), from inside or outside alike.
 float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point);
