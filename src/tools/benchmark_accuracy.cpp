@@ -180,6 +180,9 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
     std::printf("  FALSE POSITIVE at %6.3f %6.3f %6.3f: %s\n", f.center.x(), f.center.y(),
                 f.center.z(), fitText(f).c_str());
   }
+  for (const RejectedCluster& r : result.rejected) {
+    std::printf("  rejected cluster of %zu points: %s\n", r.points->size(), r.reason.c_str());
+  }
 }
 
 // Radius of the sphere around a true object's centre that holds the object.
