@@ -47,14 +47,19 @@ std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
     const Eigen::Vector3f p = point.getVector3fMap();
     const float inside = insideHull(p);
     if (inside < -kOnTheEdge) return "";  // stands beyond the image's border
-    const float height = table.signedDistance(p);
-    if (view && footOutOfView(p - height * table.normal, *view)) return "";
     const float range = (p - eye).norm();
     const float band = hull_margin + kEdgeNoiseSigmas * depth_noise_at_one_metre * range * range;
     // Where its line of sight meets the table: the point hides the table there.
+    const float height = table.signedDistance(p);
     const float hidden = height < eye_height
                              ? insideHull(eye + (p - eye) * (eye_height / (eye_height - height)))
                              : -std::numeric_limits<float>::max();
+    // Standing on the table beyond the image (as the table stage keeps points outside the
+    // hull): the camera sees the table behind it, not past the hull's edge, and its foot is
+    // out of view.
+    if (view && hidden >= -kOnTheEdge && footOutOfView(p - height * table.normal, *view)) {
+      return "";
+    }
     const float deeper = std::max(inside, hidden);
     if (deeper >= band) return "";
     if (deeper - band > deepest - deepest_band) {

@@ -181,7 +181,11 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
                 f.center.z(), fitText(f).c_str());
   }
   for (const RejectedCluster& r : result.rejected) {
-    std::printf("  rejected cluster of %zu points: %s\n", r.points->size(), r.reason.c_str());
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (const auto& p : r.points->points) centroid += p.getVector3fMap();
+    centroid /= static_cast<float>(std::max<size_t>(r.points->size(), 1));
+    std::printf("  rejected cluster at %6.3f %6.3f %6.3f, %zu points: %s\n", centroid.x(),
+                centroid.y(), centroid.z(), r.points->size(), r.reason.c_str());
   }
 }
 

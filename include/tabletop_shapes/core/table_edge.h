@@ -28,9 +28,10 @@ struct RejectedCluster {
 // widened by the sensor's depth noise at its range (kEdgeNoiseSigmas standard deviations of
 // the table's own noise, which grows with the square of the range), and no point outside the
 // hull (a point outside was kept because it stands on the table beyond the image's border:
-// that cluster is cut by the border, not at the table's edge), and no point whose foot on the
-// table lies beyond the image (`view`, when known: a box in the image's corner stands where the
-// hull's edge is a chord past it between table points on two borders).
+// that cluster is cut by the border, not at the table's edge), and no point that stands on the
+// table beyond the image (`view`, when known: its line of sight meets the table within the hull
+// and its foot is out of view; a box in the image's corner stands where the hull's edge is a
+// chord past it between table points on two borders).
 //
 // `hull` is the table's convex hull on `table` (ordered), `depth_noise_at_one_metre` the
 // table's depth noise scaled to 1 m (TableResult::depth_noise_at_one_metre), `eye` the camera.
