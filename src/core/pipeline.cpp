@@ -63,6 +63,10 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     stage = Clock::now();
     result.clusters =
         extractClusters(result.table.object_points, params_.clustering, &result.table.plane);
+    rejectClustersOffTheTable(result.clusters, result.table.plane, result.table.hull,
+                              result.table.depth_noise_at_one_metre, params_.table.hull_margin,
+                              result.table.object_points->sensor_origin_.head<3>(), &result.view,
+                              result.rejected);
     result.times.clustering_ms = msSince(stage);
 
     stage = Clock::now();

@@ -724,6 +724,8 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
 
   result.found = true;
   result.plane = table.plane;
+  result.depth_noise_at_one_metre =
+      surfaceNoise(*cloud, table, cloud->sensor_origin_.head<3>()).at_one_metre;
   result.inliers = static_cast<int>(table.inliers.size());
   result.hull = table.hull;
   result.table_points->reserve(table.inliers.size());

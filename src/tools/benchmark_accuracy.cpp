@@ -180,6 +180,13 @@ void printScene(const RenderedScene& scene, const SceneResult& result,
     std::printf("  FALSE POSITIVE at %6.3f %6.3f %6.3f: %s\n", f.center.x(), f.center.y(),
                 f.center.z(), fitText(f).c_str());
   }
+  for (const RejectedCluster& r : result.rejected) {
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (const auto& p : r.points->points) centroid += p.getVector3fMap();
+    centroid /= static_cast<float>(std::max<size_t>(r.points->size(), 1));
+    std::printf("  rejected cluster at %6.3f %6.3f %6.3f, %zu points: %s\n", centroid.x(),
+                centroid.y(), centroid.z(), r.points->size(), r.reason.c_str());
+  }
 }
 
 // Radius of the sphere around a true object's centre that holds the object.

@@ -192,6 +192,18 @@ std::string toJson(const SceneResult& scene) {
     json.raw("}");
   }
   json.raw(scene.objects.empty() ? "],\n " : "\n ],\n ");
+  // Clusters that are no objects on the table, with the reason: nothing is dropped silently.
+  json.key("rejected").raw("[");
+  for (size_t i = 0; i < scene.rejected.size(); ++i) {
+    const RejectedCluster& r = scene.rejected[i];
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (const Point& p : r.points->points) centroid += p.getVector3fMap();
+    centroid /= static_cast<float>(std::max<size_t>(r.points->size(), 1));
+    json.raw(i ? ",\n  {" : "\n  {").key("center").array(centroid, 3).raw(", ");
+    json.key("points").number(static_cast<double>(r.points->size())).raw(", ");
+    json.key("reason").string(r.reason).raw("}");
+  }
+  json.raw(scene.rejected.empty() ? "],\n " : "\n ],\n ");
   const StageTimes& t = scene.times;
   json.key("timing_ms").raw("{").key("preprocess").number(t.preprocess_ms).raw(", ");
   json.key("table").number(t.table_ms).raw(", ").key("clustering").number(t.clustering_ms);

@@ -5,6 +5,7 @@
 
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/core/shape_estimator.h"
+#include "tabletop_shapes/core/table_edge.h"
 #include "tabletop_shapes/core/table_segmentation.h"
 #include "tabletop_shapes/core/up_direction.h"
 
@@ -32,6 +33,9 @@ struct SceneResult {
   TableResult table;
   std::vector<CloudPtr> clusters;  // the object clusters, largest first
   std::vector<ShapeFit> objects;   // one per cluster, same order; unfitted: Unknown + reason
+  // Clusters that are no objects on the table (whyNotOnTheTable), each with the reason; not
+  // fitted, not in `clusters`.
+  std::vector<RejectedCluster> rejected;
   StageTimes times;
 };
 

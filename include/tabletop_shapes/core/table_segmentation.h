@@ -11,8 +11,11 @@ struct TableResult {
   Plane plane;                        // normal points up (same side as TableParams::up)
   int inliers = 0;                    // points on the table plane
   std::vector<Eigen::Vector3f> hull;  // convex hull of the inliers, on the plane, ordered
-  CloudPtr table_points;              // the inliers
-  CloudPtr object_points;             // above the table, inside hull - margin, outliers removed
+  // RMS distance of the nearer half of the inliers to the plane over their range squared: the
+  // sensor's depth noise at 1 m for noise growing with the square of the range [m].
+  float depth_noise_at_one_metre = 0.0f;
+  CloudPtr table_points;   // the inliers
+  CloudPtr object_points;  // above the table, inside hull - margin, outliers removed
 };
 
 class TableSegmenter {

@@ -1,0 +1,99 @@
+#include "tabletop_shapes/core/table_edge.h"
+
+#include "tabletop_shapes/core/convex_polygon.h"
+
+#include <cstdio>
+#include <limits>
+
+namespace tabletop_shapes {
+namespace {
+
+// Standard deviations of depth noise by which a point must stand beyond the hull's edge band to
+// stand over the table (as the table stage's kBelowNoiseSigmas).
+constexpr float kEdgeNoiseSigmas = 4.0f;
+// A point this far outside the hull is outside it; nearer, it lies on the hull's edge (the hull's
+// vertices are table inliers, and those above table.min_height are object points too) [m].
+constexpr float kOnTheEdge = 0.001f;
+
+// True when the camera does not see `foot` (optical frame): it lies beyond the image's border.
+bool footOutOfView(const Eigen::Vector3f& foot, const ViewBounds& view) {
+  if (!view.known) return false;
+  if (!(foot.z() > 0.0f)) return true;
+  const float tan_x = foot.x() / foot.z(), tan_y = foot.y() / foot.z();
+  return tan_x < view.min_tan_x || tan_x > view.max_tan_x || tan_y < view.min_tan_y ||
+         tan_y > view.max_tan_y;
+}
+
+}  // namespace
+
+std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
+                             const std::vector<Eigen::Vector3f>& hull,
+                             float depth_noise_at_one_metre, float hull_margin,
+                             const Eigen::Vector3f& eye, const ViewBounds* view) {
+  if (hull.size() < 3 || cluster.empty()) return "";
+  // The hull in the plane's coordinates, as the table stage builds it.
+  const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
+  std::vector<Eigen::Vector2f> hull_2d;
+  hull_2d.reserve(hull.size());
+  for (const Eigen::Vector3f& corner : hull) hull_2d.emplace_back(u.dot(corner), v.dot(corner));
+  hull_2d = convexHull2d(std::move(hull_2d));  // counter-clockwise whatever the input's order
+  if (hull_2d.size() < 3) return "";
+  const float eye_height = table.signedDistance(eye);
+  auto insideHull = [&](const Eigen::Vector3f& p) {
+    return insideDistance(hull_2d, Eigen::Vector2f(u.dot(p), v.dot(p)));
+  };
+  float deepest = -std::numeric_limits<float>::max(), deepest_band = 0.0f, deepest_range = 0.0f;
+  for (const Point& point : cluster.points) {
+    const Eigen::Vector3f p = point.getVector3fMap();
+    const float inside = insideHull(p);
+    if (inside < -kOnTheEdge) return "";  // stands beyond the image's border
+    const float range = (p - eye).norm();
+    const float band = hull_margin + kEdgeNoiseSigmas * depth_noise_at_one_metre * range * range;
+    // Where its line of sight meets the table: the point hides the table there.
+    const float height = table.signedDistance(p);
+    const float hidden = height < eye_height
+                             ? insideHull(eye + (p - eye) * (eye_height / (eye_height - height)))
+                             : -std::numeric_limits<float>::max();
+    // Standing on the table beyond the image (as the table stage keeps points outside the
+    // hull): the camera sees the table behind it, not past the hull's edge, and its foot is
+    // out of view.
+    if (view && hidden >= -kOnTheEdge && footOutOfView(p - height * table.normal, *view)) {
+      return "";
+    }
+    const float deeper = std::max(inside, hidden);
+    if (deeper >= band) return "";
+    if (deeper - band > deepest - deepest_band) {
+      deepest = deeper, deepest_band = band, deepest_range = range;
+    }
+  }
+  char reason[320];
+  std::snprintf(reason, sizeof reason,
+                "not on the table: rises along the edge of the table's hull (a wall's foot behind "
+                "the table): its points stand, and hide the table, at most %.3f m inside the hull, "
+                "within the edge band of %.3f m (table.hull_margin %.3f m + %.0f x the depth "
+                "noise %.4f m at %.2f m)",
+                deepest, deepest_band, hull_margin, kEdgeNoiseSigmas,
+                depth_noise_at_one_metre * deepest_range * deepest_range, deepest_range);
+  return reason;
+}
+
+void rejectClustersOffTheTable(std::vector<CloudPtr>& clusters, const Plane& table,
+                               const std::vector<Eigen::Vector3f>& hull,
+                               float depth_noise_at_one_metre, float hull_margin,
+                               const Eigen::Vector3f& eye, const ViewBounds* view,
+                               std::vector<RejectedCluster>& rejected) {
+  std::vector<CloudPtr> kept;
+  kept.reserve(clusters.size());
+  for (CloudPtr& cluster : clusters) {
+    std::string reason =
+        whyNotOnTheTable(*cluster, table, hull, depth_noise_at_one_metre, hull_margin, eye, view);
+    if (reason.empty()) {
+      kept.push_back(std::move(cluster));
+    } else {
+      rejected.push_back({std::move(cluster), std::move(reason)});
+    }
+  }
+  clusters.swap(kept);
+}
+
+}  // namespace tabletop_shapes
