@@ -271,7 +271,8 @@ TEST(TableSegmenter, FlyingPixelsPastTheNearEdgeKeepTheTable) {
   // Something on the floor too (a bin beside the table), so the floor is a support with objects.
   synthetic::Sampler sampler;
   sampler.camera = camera - Eigen::Vector3f(0.0f, 0.0f, kFloorZ);  // in the bin's floor frame
-  for (const auto& p : *synthetic::box({0.3f, 0.3f, 0.3f}, {1.0f, -0.2f}, 0.3f, sampler)) {
+  const auto bin = synthetic::box({0.3f, 0.3f, 0.3f}, {1.0f, -0.2f}, 0.3f, sampler);
+  for (const auto& p : *bin) {
     flying.push_back(Point(p.x, p.y, p.z + kFloorZ));
   }
   synthetic::transformCloud(scene.table_to_camera, flying);
@@ -296,7 +297,8 @@ TEST(TableSegmenter, ObjectAtTheHullEdgeIsKeptWhole) {
   const Eigen::Vector2f centre(0.1f, kTableMinY + radius + 0.003f);
   Cloud added;
   size_t mug_points = 0;
-  for (const auto& p : *synthetic::roundObject(radius, radius, 0.1f, centre, sampler)) {
+  const auto solid = synthetic::roundObject(radius, radius, 0.1f, centre, sampler);
+  for (const auto& p : *solid) {
     added.push_back(p);
     mug_points += p.z >= TableParams().min_height;
   }
@@ -366,7 +368,8 @@ TEST(TableSegmenter, ThingHeldInFrontOfTheTableIsNotAnObject) {
   const float lift = 0.1f;                                     // its bottom above the table's plane
   sampler.camera = Eigen::Vector3f(0.0f, -0.9f, 0.6f - lift);  // makeScene's, in its frame
   Cloud held;
-  for (const auto& p : *synthetic::box({0.06f, 0.06f, 0.2f}, {0.0f, -0.2f}, 0.0f, sampler)) {
+  const auto tall_box = synthetic::box({0.06f, 0.06f, 0.2f}, {0.0f, -0.2f}, 0.0f, sampler);
+  for (const auto& p : *tall_box) {
     held.push_back(Point(p.x, p.y, p.z + lift));
   }
   ASSERT_GT(held.size(), 300u);
