@@ -1,8 +1,7 @@
 #include "tabletop_shapes/core/pipeline.h"
 
 #include "tabletop_shapes/core/clustering.h"
-#include "tabletop_shapes/core/neck_join.h"
-#include "tabletop_shapes/core/support.h"
+#include "tabletop_shapes/core/object_fitting.h"
 #include "tabletop_shapes/core/up_direction.h"
 
 #include <chrono>
@@ -70,10 +69,7 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
     result.times.clustering_ms = msSince(stage);
 
     stage = Clock::now();
-    std::vector<Plane> supports = supportPlanes(result.clusters, result.table.plane);
-    result.objects = estimator_.estimateAll(result.clusters, supports, &result.view);
-    rejoinNecks(estimator_, result.table.plane, result.view, result.clusters, supports,
-                result.objects);
+    result.objects = fitObjects(estimator_, result.table.plane, result.view, result.clusters);
     result.times.shapes_ms = msSince(stage);
   }
   result.times.total_ms = msSince(start);

@@ -15,9 +15,7 @@
 //   ~output_frame (string, "": the cloud's frame): results transformed with tf2; a missing
 //     transform skips the frame with a throttled warning
 //   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
-#include "tabletop_shapes/core/shape_estimator.h"
-#include "tabletop_shapes/core/neck_join.h"
-#include "tabletop_shapes/core/support.h"
+#include "tabletop_shapes/core/object_fitting.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
@@ -124,7 +122,6 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     if (objects.table_found) {
       std::vector<CloudPtr> parts = splitClusters(*clusters);
       const Plane table_plane = bridge::planeFromMsg(*table);
-      std::vector<Plane> supports = supportPlanes(parts, table_plane);
       ViewBounds view;  // unknown for an unorganised input cloud: nothing is cut then
       const bool view_came = viewOf(objects.header.stamp, view);
       monitor_->setWarning("view", view_came ? ""
@@ -132,8 +129,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
                                                    view_subscriber_.getTopic() +
                                                    ": objects cut by the image border are not "
                                                    "flagged truncated");
-      std::vector<ShapeFit> fits = estimator_.estimateAll(parts, supports, &view);
-      rejoinNecks(estimator_, table_plane, view, parts, supports, fits);
+      const std::vector<ShapeFit> fits = fitObjects(estimator_, table_plane, view, parts);
       for (const ShapeFit& fit : fits) {
         bridge::appendObject(fit, objects.header, objects);
       }
