@@ -103,6 +103,17 @@ void GridSearch<PointT>::setInputCloud(const PointCloudConstPtr& cloud,
 }
 
 template <typename PointT>
+typename GridSearch<PointT>::Run GridSearch<PointT>::runAt(size_t begin) const {
+  const Entry& first = points_[begin];
+  Run run;
+  run.cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
+  run.cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
+  run.cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
+  run.end = find(keyOf(run.cx, run.cy, run.cz))->end;
+  return run;
+}
+
+template <typename PointT>
 template <typename Visit>
 void GridSearch<PointT>::visitRing(int cx, int cy, int cz, int ring, Visit&& visit) const {
   auto visitCell = [&](int x, int y, int z) {
@@ -226,12 +237,9 @@ void GridSearch<PointT>::forEachNearestK(
   pcl::Indices fallback_indices;
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   for (size_t begin = 0; begin < points_.size();) {
-    const Entry& first = points_[begin];
-    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
-    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
-    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
-    const Cell* cell = find(keyOf(cx, cy, cz));
-    const size_t end = cell->end;
+    const Run run = runAt(begin);
+    const int cx = run.cx, cy = run.cy, cz = run.cz;
+    const size_t end = run.end;
     // Every point of the 3 x 3 x 3 block of cells around this one.
     xs.clear(), ys.clear(), zs.clear();
     for (int ring = 0; ring <= 1; ++ring) {
@@ -295,11 +303,9 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
   std::vector<uint64_t> keys;
   pcl::Indices neighbours;
   for (size_t begin = 0; begin < points_.size();) {
-    const Entry& first = points_[begin];
-    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
-    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
-    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
-    const size_t end = find(keyOf(cx, cy, cz))->end;
+    const Run run = runAt(begin);
+    const int cx = run.cx, cy = run.cy, cz = run.cz;
+    const size_t end = run.end;
     xs.clear(), ys.clear(), zs.clear(), indices.clear();
     for (int ring = 0; ring <= reach; ++ring) {
       visitRing(cx, cy, cz, ring, [&](const Entry& e) {
@@ -346,11 +352,9 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
     return i;
   };
   for (size_t begin = 0; begin < points_.size();) {
-    const Entry& first = points_[begin];
-    const int cx = static_cast<int>(voxel_key::floorToInt(first.x * inv_cell_));
-    const int cy = static_cast<int>(voxel_key::floorToInt(first.y * inv_cell_));
-    const int cz = static_cast<int>(voxel_key::floorToInt(first.z * inv_cell_));
-    const size_t end = find(keyOf(cx, cy, cz))->end;
+    const Run run = runAt(begin);
+    const int cx = run.cx, cy = run.cy, cz = run.cz;
+    const size_t end = run.end;
     for (int ring = 0; ring <= reach; ++ring) {
       visitRing(cx, cy, cz, ring, [&](const Entry& e) {
         const uint32_t j = static_cast<uint32_t>(&e - points_.data());

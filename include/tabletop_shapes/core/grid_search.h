@@ -71,6 +71,13 @@ class GridSearch : public pcl::search::Search<PointT> {
   };
   uint64_t keyOf(int cx, int cy, int cz) const;
   const Cell* find(uint64_t key) const;
+  // The cell of the run of points_ starting at `begin` (points_ is sorted by cell, so a run
+  // is one cell's points) and the position just past the run.
+  struct Run {
+    int cx, cy, cz;
+    size_t end;
+  };
+  Run runAt(size_t begin) const;
   // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>
