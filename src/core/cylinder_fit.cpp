@@ -749,24 +749,62 @@ const double kEndDiscMinCos = 0.5;
 // A lying solid may sink into the table by the wall's noise, not more: 3 trimmed RMS, at least
 // this much (a real can cannot pass through the table it lies on).
 constexpr double kMaxBelowTable = 0.005;  // [m]
+// Start axes fitted in full, the most circular sections first (sectionSpread).
+constexpr size_t kFullyFittedAxes = 2;
 
-// The cylinder lying along the horizontal `axis`: a circle through the side-wall points in the
-// vertical plane across the axis (s along up x axis, h above the table); its length the points'
-// extent along the axis. `table_d` is the table's d for the unit `up`.
-ShapeFit lyingCylinderAlong(const Vec3d& axis, const Vec3d& up, double table_d,
-                            const std::vector<Vec3d>& positions, const std::vector<Vec3d>& normals,
+// The points seen along the horizontal `axis` of a lying cylinder: the side-wall points in the
+// vertical plane across the axis (s along up x axis, h above the table), every point's and the
+// end disc's coordinates along it. `table_d` is the table's d for the unit `up`.
+struct LyingSection {
+  Vec3d axis, across;
+  std::vector<Vec2d> section;
+  std::vector<double> along, end_disc;
+};
+
+LyingSection sectionAcross(const Vec3d& axis, const Vec3d& up, double table_d,
+                           const std::vector<Vec3d>& positions, const std::vector<Vec3d>& normals) {
+  LyingSection out;
+  out.axis = axis;
+  out.across = up.cross(axis);
+  out.along.resize(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) {
+    out.along[i] = axis.dot(positions[i]);
+    if (normals[i].dot(axis) >= kEndDiscMinCos) out.end_disc.push_back(out.along[i]);
+    if (std::abs(normals[i].dot(axis)) >= kEndDiscMinCos) continue;
+    out.section.emplace_back(out.across.dot(positions[i]), up.dot(positions[i]) + table_d);
+  }
+  return out;
+}
+
+// How far the side-wall section strays from a circle, cheaply: the median distance of its
+// points from their algebraic circle (infinite without one). A start axis a few degrees off
+// smears the section into an ellipse; this ranks the start axes so that only the most circular
+// sections get the trimmed geometric fit, which costs ~50 times more.
+double sectionSpread(const LyingSection& lying) {
+  if (static_cast<int>(lying.section.size()) < kMinSidePoints) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const Circle circle = algebraicCircle(lying.section);
+  if (!circle.ok) return std::numeric_limits<double>::infinity();
+  std::vector<double> distances(lying.section.size());
+  for (size_t i = 0; i < lying.section.size(); ++i) {
+    distances[i] =
+        std::abs((lying.section[i] - circle.center.cast<double>()).norm() - circle.radius);
+  }
+  return quantile(std::move(distances), 0.5);
+}
+
+// The cylinder lying along the section's axis: a circle through the side-wall points across
+// it; its length the points' extent along the axis.
+ShapeFit lyingCylinderAlong(const LyingSection& lying, const Vec3d& up, double table_d,
                             const CylinderParams& params) {
   ShapeFit fit;
   fit.type = ShapeType::Cylinder;
-  const Vec3d across = up.cross(axis);
-  std::vector<Vec2d> section;
-  std::vector<double> along(positions.size()), end_disc;
-  for (size_t i = 0; i < positions.size(); ++i) {
-    along[i] = axis.dot(positions[i]);
-    if (normals[i].dot(axis) >= kEndDiscMinCos) end_disc.push_back(along[i]);
-    if (std::abs(normals[i].dot(axis)) >= kEndDiscMinCos) continue;
-    section.emplace_back(across.dot(positions[i]), up.dot(positions[i]) + table_d);
-  }
+  const Vec3d& axis = lying.axis;
+  const Vec3d& across = lying.across;
+  const std::vector<Vec2d>& section = lying.section;
+  const std::vector<double>& along = lying.along;
+  const std::vector<double>& end_disc = lying.end_disc;
   if (static_cast<int>(section.size()) < kMinSidePoints) {
     fit.reason = "too few side-wall points (" + std::to_string(section.size()) + ")";
     return fit;
@@ -879,7 +917,7 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
   // the refinement off by a few degrees too (on a real can 23 cm long, 3.7 degrees smeared its
   // section 4 mm RMS), so the circle that follows its side wall most closely decides.
   std::vector<Vec3d> tried;
-  ShapeFit best;
+  std::vector<std::pair<double, LyingSection>> sections;  // (sectionSpread, section)
   auto tryAxis = [&](Vec3d axis) {
     for (const Vec3d& other : tried) {
       if (std::abs(other.dot(axis)) > std::cos(kPi / 180.0)) return;  // within a degree
@@ -888,9 +926,9 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
     // The axis points towards the camera (the origin), so the end disc the camera may see is
     // the solid's "top" (distanceToVisibleRoundSurface).
     if (axis.dot(-centroid) < 0.0) axis = -axis;
-    ShapeFit fit = lyingCylinderAlong(axis, up, table_d, positions, normals, params);
-    const bool better = fit.ok ? !best.ok || fit.rmse < best.rmse : !best.ok && best.reason.empty();
-    if (better) best = fit;
+    LyingSection lying = sectionAcross(axis, up, table_d, positions, normals);
+    const double spread = sectionSpread(lying);
+    sections.emplace_back(spread, std::move(lying));
   };
   for (const Eigen::Matrix3d* scatter : {&normal_scatter, &point_scatter}) {
     Eigen::Matrix2d planar;
@@ -903,6 +941,16 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
       tryAxis(start);
       tryAxis(sideWallAxis(start, up, normals));
     }
+  }
+  // The most circular sections get the full fit; of those that fit, the one that follows its
+  // side wall most closely wins.
+  std::stable_sort(sections.begin(), sections.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  ShapeFit best;
+  for (size_t i = 0; i < std::min(sections.size(), kFullyFittedAxes); ++i) {
+    ShapeFit fit = lyingCylinderAlong(sections[i].second, up, table_d, params);
+    const bool better = fit.ok ? !best.ok || fit.rmse < best.rmse : !best.ok && best.reason.empty();
+    if (better) best = fit;
   }
   return best;
 }
