@@ -106,7 +106,7 @@ benchmark-accuracy: build
 # in one nodelet manager beside Debian's pcl_ros chain, 300 frames per run (~10 min);
 # QUICK=1: a few frames each, a smoke run.
 benchmark-speed: build
-	scripts/benchmark_speed $(if $(QUICK),--quick) --osd $(OSD_DIR) --out benchmark-output
+	scripts/benchmark_speed $(if $(QUICK),--quick) --build $(BUILD_DIR) --osd $(OSD_DIR) --out benchmark-output
 
 # The whole chain on a bundled rendered recording of the paper's four objects; prints the
 # objects found beside the true values. RVIZ=1 opens rviz; DEVICE=... uses a live camera.

@@ -229,6 +229,32 @@ int GridSearch<PointT>::nearestKSearch(const PointT& point, int k, pcl::Indices&
 }
 
 template <typename PointT>
+template <typename Start, typename Gather, typename Select>
+void GridSearch<PointT>::forEachPointInBlocks(Start&& start, Gather&& gather,
+                                              Select&& select) const {
+  for (size_t begin = 0; begin < points_.size();) {
+    const Run run = runAt(begin);
+    // Every point of the 3 x 3 x 3 block of cells around this one.
+    start();
+    for (int ring = 0; ring <= 1; ++ring) visitRing(run.cx, run.cy, run.cz, ring, gather);
+    for (size_t i = begin; i < run.end; ++i) {
+      const Entry& q = points_[i];
+      // The block holds every point closer than 1 + inset cells (inset: the distance from q
+      // to its cell's nearest face); beyond that the k-th neighbour needs the general search.
+      // Only the points within that distance can be among the k nearest found here: the
+      // others need not be kept (half of the block on a surface), so the selection is
+      // cheaper and finds the same k nearest.
+      const float fx = q.x * inv_cell_ - run.cx, fy = q.y * inv_cell_ - run.cy,
+                  fz = q.z * inv_cell_ - run.cz;
+      const float inset = std::min({fx, 1 - fx, fy, 1 - fy, fz, 1 - fz});
+      const float covered = (1.0f + std::max(inset, 0.0f)) * cell_size_;
+      select(q, covered * covered);
+    }
+    begin = run.end;
+  }
+}
+
+template <typename PointT>
 void GridSearch<PointT>::forEachNearestK(
     int k, const std::function<void(int, const std::vector<float>&)>& visit) const {
   if (k <= 0) return;
@@ -236,60 +262,79 @@ void GridSearch<PointT>::forEachNearestK(
   std::vector<float> xs, ys, zs, squared, nearest;
   pcl::Indices fallback_indices;
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
-  for (size_t begin = 0; begin < points_.size();) {
-    const Run run = runAt(begin);
-    const int cx = run.cx, cy = run.cy, cz = run.cz;
-    const size_t end = run.end;
-    // Every point of the 3 x 3 x 3 block of cells around this one.
-    xs.clear(), ys.clear(), zs.clear();
-    for (int ring = 0; ring <= 1; ++ring) {
-      visitRing(cx, cy, cz, ring,
-                [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); });
-    }
-    for (size_t i = begin; i < end; ++i) {
-      const Entry& q = points_[i];
-      // The block holds every point closer than 1 + inset cells (inset: the distance from q
-      // to its cell's nearest face); beyond that the k-th neighbour needs the general search.
-      // Only the points within that distance can be among the k nearest found here: the
-      // others are not kept (half of the block on a surface), so the selection below is
-      // cheaper and finds the same k distances.
-      const float fx = q.x * inv_cell_ - cx, fy = q.y * inv_cell_ - cy, fz = q.z * inv_cell_ - cz;
-      const float inset = std::min({fx, 1 - fx, fy, 1 - fy, fz, 1 - fz});
-      const float covered = (1.0f + std::max(inset, 0.0f)) * cell_size_;
-      const float covered_squared = covered * covered;
-      squared.resize(xs.size());
-      size_t kept = 0;
-      for (size_t j = 0; j < xs.size(); ++j) {
-        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-        const float d = dx * dx + dy * dy + dz * dz;
-        squared[kept] = d;
-        kept += d <= covered_squared;
-      }
-      squared.resize(kept);
-      const bool complete = kept >= wanted;
-      if (complete) {
-        std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
-      }
-      if (complete) {
-        nearest.assign(squared.begin(), squared.begin() + wanted);
-        std::sort(nearest.begin(), nearest.end());
-      } else {
-        // A k-d tree, not the grid's growing rings: the points that get here are the sparse
-        // ones (flying pixels, edges), whose rings run through many empty cells before k
-        // points turn up. It finds the same distances (FLANN sums the squares in the same
-        // order) and is built at the first such point.
-        if (!fallback) {
-          fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
-          fallback->setInputCloud(this->input_, this->indices_);
+  forEachPointInBlocks(
+      [&] { xs.clear(), ys.clear(), zs.clear(); },
+      [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
+      [&](const Entry& q, float covered_squared) {
+        squared.resize(xs.size());
+        size_t kept = 0;
+        for (size_t j = 0; j < xs.size(); ++j) {
+          const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+          const float d = dx * dx + dy * dy + dz * dz;
+          squared[kept] = d;
+          kept += d <= covered_squared;
         }
-        PointT point;
-        point.x = q.x, point.y = q.y, point.z = q.z;
-        fallback->nearestKSearch(point, k, fallback_indices, nearest);
-      }
-      visit(q.index, nearest);
-    }
-    begin = end;
-  }
+        squared.resize(kept);
+        if (kept >= wanted) {
+          std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
+          nearest.assign(squared.begin(), squared.begin() + wanted);
+          std::sort(nearest.begin(), nearest.end());
+        } else {
+          // A k-d tree, not the grid's growing rings: the points that get here are the sparse
+          // ones (flying pixels, edges), whose rings run through many empty cells before k
+          // points turn up. It finds the same distances (FLANN sums the squares in the same
+          // order) and is built at the first such point.
+          if (!fallback) {
+            fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
+            fallback->setInputCloud(this->input_, this->indices_);
+          }
+          PointT point;
+          point.x = q.x, point.y = q.y, point.z = q.z;
+          fallback->nearestKSearch(point, k, fallback_indices, nearest);
+        }
+        visit(q.index, nearest);
+      });
+}
+
+template <typename PointT>
+void GridSearch<PointT>::forEachNearestKIndices(
+    int k, const std::function<void(int, const pcl::Indices&)>& visit) const {
+  if (k <= 0) return;
+  const size_t wanted = static_cast<size_t>(k);
+  std::vector<float> xs, ys, zs, fallback_distances;
+  std::vector<int> indices;
+  std::vector<uint64_t> keys;
+  pcl::Indices nearest;
+  forEachPointInBlocks(
+      [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
+      [&](const Entry& e) {
+        xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
+      },
+      [&](const Entry& q, float covered_squared) {
+        // (distance, index) as one integer, as forEachRadiusNeighbours: ordered as
+        // nearestKSearch orders its pairs, ties by index.
+        keys.clear();
+        for (size_t j = 0; j < xs.size(); ++j) {
+          const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
+          const float d = dx * dx + dy * dy + dz * dz;
+          if (d <= covered_squared) {
+            uint32_t bits;
+            std::memcpy(&bits, &d, sizeof bits);
+            keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
+          }
+        }
+        if (keys.size() >= wanted) {
+          std::nth_element(keys.begin(), keys.begin() + (wanted - 1), keys.end());
+          std::sort(keys.begin(), keys.begin() + wanted);
+          nearest.resize(wanted);
+          for (size_t j = 0; j < wanted; ++j) nearest[j] = static_cast<int>(keys[j] & ~0u);
+        } else {
+          PointT point;
+          point.x = q.x, point.y = q.y, point.z = q.z;
+          nearestKSearch(point, k, nearest, fallback_distances);  // the rings, same order
+        }
+        visit(q.index, nearest);
+      });
 }
 
 template <typename PointT>

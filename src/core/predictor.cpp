@@ -22,22 +22,20 @@ Prediction predictShape(const NormalCloud& object, const PredictorParams& params
   tree.setInputCloud(object.makeShared());
 
   // Eq. 1: d(p0) = sum over the k nearest neighbours of ||n_i - n_0||.
+  // (Points in no particular order: the values are sorted below.)
   std::vector<float> variation;
   variation.reserve(n);
-  pcl::Indices neighbours(k + 1);
-  std::vector<float> squared_distances(k + 1);
-  for (int i = 0; i < n; ++i) {
-    const int found = tree.nearestKSearch(object[i], k + 1, neighbours, squared_distances);
+  tree.forEachNearestKIndices(k + 1, [&](int i, const pcl::Indices& neighbours) {
     const Eigen::Vector3f n0 = object[i].getNormalVector3fMap();
     float sum = 0.0f;
     int used = 0;
-    for (int j = 0; j < found && used < k; ++j) {
+    for (size_t j = 0; j < neighbours.size() && used < k; ++j) {
       if (neighbours[j] == i) continue;  // the query point itself
       sum += (object[neighbours[j]].getNormalVector3fMap() - n0).norm();
       ++used;
     }
     if (used == k) variation.push_back(sum);
-  }
+  });
   if (variation.empty()) return prediction;
 
   // Edge points have unstable normals and neighbours on the adjacent face: average only the

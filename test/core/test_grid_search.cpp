@@ -74,3 +74,28 @@ TEST(GridSearch, RadiusNeighboursOfEveryPointAreThoseOfAPairwiseSearch) {
     EXPECT_GT(neighbours_seen, 20u * cloud->size() * radius / 0.02f);
   }
 }
+
+TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
+  // 1 cm cells as predictShape uses them: the surface's points find their k nearest in the
+  // block of cells around them, the sparse points around it fall back to the growing rings.
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.01f);
+  search.setInputCloud(cloud);
+  for (const int k : {4, 30}) {
+    std::vector<int> visits(cloud->size(), 0);
+    search.forEachNearestKIndices(k, [&](int i, const pcl::Indices& nearest) {
+      ++visits[i];
+      pcl::Indices expected = bruteForce(*cloud, i, std::numeric_limits<float>::infinity());
+      expected.resize(k);
+      EXPECT_EQ(nearest, expected) << "point " << i << ", k " << k;
+      ASSERT_FALSE(nearest.empty());
+      EXPECT_EQ(nearest.front(), i);  // itself, at 0
+      pcl::Indices single;
+      std::vector<float> squared;
+      search.nearestKSearch((*cloud)[i], k, single, squared);
+      EXPECT_EQ(nearest, single) << "point " << i;
+    });
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+    EXPECT_EQ(visits.back(), 0);
+  }
+}

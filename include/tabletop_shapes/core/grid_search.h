@@ -45,6 +45,10 @@ class GridSearch : public pcl::search::Search<PointT> {
   // candidates around each cell are gathered once for all the points in it.
   void forEachNearestK(int k,
                        const std::function<void(int, const std::vector<float>&)>& visit) const;
+  // The same with the neighbours' input indices: visit(index, the k nearest, nearest first,
+  // equal distances by index), the lists one nearestKSearch per point gives.
+  void forEachNearestKIndices(int k,
+                              const std::function<void(int, const pcl::Indices&)>& visit) const;
 
   // The neighbours of every point of the input within `radius` (squared distance < radius^2),
   // as radiusSearch finds and orders them: visit(index, neighbour indices), points in no
@@ -78,6 +82,11 @@ class GridSearch : public pcl::search::Search<PointT> {
     size_t end;
   };
   Run runAt(size_t begin) const;
+  // For each run of points_ in one cell: start(), gather(entry) for every point of the 3 x 3 x
+  // 3 block of cells around it, then select(q, covered_squared) for each point q of the run:
+  // the block holds every point whose squared distance from q is at most covered_squared.
+  template <typename Start, typename Gather, typename Select>
+  void forEachPointInBlocks(Start&& start, Gather&& gather, Select&& select) const;
   // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>
