@@ -8,24 +8,15 @@
 #include "tabletop_shapes/sim/scene_renderer.h"
 
 #include <gtest/gtest.h>
-#include <ros/serialization.h>
+
+#include "message_round_trip.h"
 
 #include <vector>
 
 namespace tabletop_shapes {
 namespace {
 
-template <typename Msg>
-Msg roundTrip(const Msg& in) {
-  const uint32_t size = ros::serialization::serializationLength(in);
-  std::vector<uint8_t> buffer(size);
-  ros::serialization::OStream out_stream(buffer.data(), size);
-  ros::serialization::serialize(out_stream, in);
-  Msg out;
-  ros::serialization::IStream in_stream(buffer.data(), size);
-  ros::serialization::deserialize(in_stream, out);
-  return out;
-}
+using tabletop_shapes_test::roundTrip;
 
 TEST(TableEdgeChain, TableMessageCarriesWhatTheRuleNeeds) {
   TableResult table;
