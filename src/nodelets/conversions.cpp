@@ -101,7 +101,8 @@ std::string format(const char* pattern, double a, double b = 0, double c = 0) {
 
 }  // namespace
 
-Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
+Table toTableMsg(const TableResult& table, float hull_margin, const Eigen::Vector3f& viewpoint,
+                 const std_msgs::Header& header) {
   Table msg;
   msg.header = header;
   if (!table.found) {
@@ -118,6 +119,9 @@ Table toTableMsg(const TableResult& table, const std_msgs::Header& header) {
     point.z = p.z();
     msg.hull.points.push_back(point);
   }
+  msg.depth_noise_at_one_metre = table.depth_noise_at_one_metre;
+  msg.hull_margin = hull_margin;
+  msg.viewpoint = toPointMsg(viewpoint.cast<double>());
   return msg;
 }
 
@@ -164,6 +168,34 @@ Plane planeFromMsg(const Table& table) {
   return plane;
 }
 
+std::vector<Eigen::Vector3f> hullFromMsg(const Table& table) {
+  std::vector<Eigen::Vector3f> hull;
+  hull.reserve(table.hull.points.size());
+  for (const geometry_msgs::Point32& p : table.hull.points) hull.emplace_back(p.x, p.y, p.z);
+  return hull;
+}
+
+UnfittedCluster toRejectedMsg(const RejectedCluster& rejected) {
+  UnfittedCluster msg;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Point& p : rejected.points->points) sum += p.getVector3fMap().cast<double>();
+  if (!rejected.points->empty()) sum /= static_cast<double>(rejected.points->size());
+  msg.centroid = toPointMsg(sum);
+  msg.points = static_cast<uint32_t>(rejected.points->size());
+  msg.reason = rejected.reason;
+  return msg;
+}
+
+void rejectClustersOffTheTable(const Table& table, const ViewBounds* view,
+                               std::vector<CloudPtr>& clusters, Objects& objects) {
+  if (!tableFound(table)) return;
+  std::vector<RejectedCluster> rejected;
+  tabletop_shapes::rejectClustersOffTheTable(
+      clusters, planeFromMsg(table), hullFromMsg(table), table.depth_noise_at_one_metre,
+      table.hull_margin, fromPointMsg(table.viewpoint).cast<float>(), view, rejected);
+  for (const RejectedCluster& r : rejected) objects.rejected.push_back(toRejectedMsg(r));
+}
+
 void transformObjects(const Eigen::Isometry3d& target_from_source, const std::string& target_frame,
                       Objects& objects) {
   auto moveHeaderAndPose = [&](std_msgs::Header& header, geometry_msgs::Pose& pose) {
@@ -174,8 +206,10 @@ void transformObjects(const Eigen::Isometry3d& target_from_source, const std::st
   for (Cube& cube : objects.cubes) moveHeaderAndPose(cube.header, cube.pose);
   for (Cylinder& cylinder : objects.cylinders) moveHeaderAndPose(cylinder.header, cylinder.pose);
   for (Cone& cone : objects.cones) moveHeaderAndPose(cone.header, cone.pose);
-  for (UnfittedCluster& unfitted : objects.unfitted) {
-    unfitted.centroid = toPointMsg(target_from_source * fromPointMsg(unfitted.centroid));
+  for (auto* list : {&objects.unfitted, &objects.rejected}) {
+    for (UnfittedCluster& cluster : *list) {
+      cluster.centroid = toPointMsg(target_from_source * fromPointMsg(cluster.centroid));
+    }
   }
   Table& table = objects.table;
   table.header.frame_id = target_frame;
@@ -186,6 +220,7 @@ void transformObjects(const Eigen::Isometry3d& target_from_source, const std::st
       Eigen::Vector3d(table.coefficients[0], table.coefficients[1], table.coefficients[2]);
   const double d = table.coefficients[3] - normal.dot(target_from_source.translation());
   table.coefficients = {normal.x(), normal.y(), normal.z(), d};
+  table.viewpoint = toPointMsg(target_from_source * fromPointMsg(table.viewpoint));
   for (geometry_msgs::Point32& p : table.hull.points) {
     const Eigen::Vector3d moved = target_from_source * Eigen::Vector3d(p.x, p.y, p.z);
     p.x = static_cast<float>(moved.x());

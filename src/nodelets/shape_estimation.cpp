@@ -6,8 +6,10 @@
 //   WARN on /diagnostics says so).
 // Publishes, once per frame (also when nothing was found):
 //   objects (tabletop_shapes/Objects); `reason` says why there is no result (no table, no
-//     transform to output_frame; then in the cloud's frame). Preprocess and TableSegmentation
-//     publish it too for the frames they skip, so every frame taken in gets one.
+//     transform to output_frame; then in the cloud's frame). Clusters along the table hull's
+//     edge (a wall's foot: core table_edge.h) are not fitted but listed in `rejected`. Preprocess
+//     and TableSegmentation publish it too for the frames they skip, so every frame taken in gets
+//     one.
 //   markers (visualization_msgs/MarkerArray): solids, labels, table hull; stale ones deleted
 //   cubes / cylinders / cones (tabletop_shapes/Cube, Cylinder, Cone): one message per object,
 //     only while someone subscribes
@@ -129,6 +131,9 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
                                                    view_subscriber_.getTopic() +
                                                    ": objects cut by the image border are not "
                                                    "flagged truncated");
+      // Pipeline runs this rule right after clustering; here the table message brings what it
+      // needs (depth noise, hull_margin, viewpoint), and the view what is beyond the image.
+      bridge::rejectClustersOffTheTable(*table, &view, parts, objects);
       const std::vector<ShapeFit> fits = fitObjects(estimator_, table_plane, view, parts);
       for (const ShapeFit& fit : fits) {
         bridge::appendObject(fit, objects.header, objects);

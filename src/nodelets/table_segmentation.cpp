@@ -3,7 +3,8 @@
 // Subscribes: preprocessed (pcl::PointCloud<pcl::PointXYZ>)
 // Publishes, once per processed frame and with the same stamp (the PCL header's, in whole
 // microseconds), so that the next stages pair them exactly:
-//   table (tabletop_shapes/Table; inliers == 0 when no table was found)
+//   table (tabletop_shapes/Table; inliers == 0 when no table was found; with the depth noise,
+//     hull_margin and viewpoint that ShapeEstimation's table-edge rule needs)
 //   objects_cloud (pcl::PointCloud<pcl::PointXYZ>; empty when no table was found)
 //   table_inliers (pcl::PointCloud<pcl::PointXYZ>), only while someone subscribes
 //   objects (tabletop_shapes/Objects) for a frame skipped here (no up transform), with the reason
@@ -199,7 +200,8 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       inliers->header = cloud->header;
       publishCloud(inliers_publisher_, inliers);
     }
-    table_publisher_.publish(bridge::toTableMsg(result, header));
+    table_publisher_.publish(
+        bridge::toTableMsg(result, params.hull_margin, input->sensor_origin_.head<3>(), header));
     publishCloud(objects_publisher_, objects);
     monitor_->frameDone(stopwatch.milliseconds(), cloud->size(), objects->size());
   }

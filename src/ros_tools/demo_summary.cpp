@@ -182,6 +182,11 @@ void printTable(const tabletop_shapes::Objects& last, const std::vector<Row>& tr
                 100 * unfitted.centroid.x, 100 * unfitted.centroid.y, 100 * unfitted.centroid.z,
                 unfitted.reason.c_str());
   }
+  for (const auto& rejected : last.rejected) {
+    std::printf("rejected  %u points at %.1f %.1f %.1f cm: %s\n", rejected.points,
+                100 * rejected.centroid.x, 100 * rejected.centroid.y, 100 * rejected.centroid.z,
+                rejected.reason.c_str());
+  }
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // Round trips of the package's messages through ROS serialisation: what a subscriber in
 // another process (or a bag) receives equals what was published.
 #include <gtest/gtest.h>
-#include <ros/serialization.h>
+
+#include "message_round_trip.h"
 
 #include <shape_msgs/SolidPrimitive.h>
 #include <tabletop_shapes/Objects.h>
@@ -10,17 +11,7 @@
 
 namespace {
 
-template <typename Msg>
-Msg roundTrip(const Msg& in) {
-  const uint32_t size = ros::serialization::serializationLength(in);
-  std::vector<uint8_t> buffer(size);
-  ros::serialization::OStream out_stream(buffer.data(), size);
-  ros::serialization::serialize(out_stream, in);
-  Msg out;
-  ros::serialization::IStream in_stream(buffer.data(), size);
-  ros::serialization::deserialize(in_stream, out);
-  return out;
-}
+using tabletop_shapes_test::roundTrip;
 
 tabletop_shapes::Objects makeObjects() {
   tabletop_shapes::Objects msg;

@@ -20,7 +20,9 @@ struct ShapeEstimatorParams {
   // Active-stereo cameras (RealSense D4xx) smear a near surface's depth over up to this many
   // pixels beyond its silhouette (their correlation window: "foreground fattening"); 0 for
   // structured light (Kinect v1, Xtion). Points within that band of a cluster's sides, across
-  // the line of sight, are left out of the fit: an 18 mm marker's points spanned 30-36 mm.
+  // the line of sight, are left out of the fit: an 18 mm marker's points spanned 30-36 mm. A
+  // thin upright cylinder (under 14 px across) takes half its median width over height slices,
+  // less the smear, as its radius (its circle is depth noise).
   float edge_bleed_px = 0.0f;
 };
 
