@@ -20,10 +20,9 @@ namespace {
 
 class OniWriterTest : public ::testing::Test {
  protected:
-  // OpenNI2 once per process: initialising it again after shutdown() crashes. No shutdown():
-  // it dlclose()s OpenNI2's device drivers, whose static tables (never freed by OpenNI2) then
-  // look leaked to LeakSanitizer (make test-sanitize); loaded, their globals still reach them.
+  // OpenNI2 once per process: initialising it again after shutdown() crashes.
   static void SetUpTestSuite() { initialized_ = openni::OpenNI::initialize() == openni::STATUS_OK; }
+  static void TearDownTestSuite() { openni::OpenNI::shutdown(); }
   void SetUp() override { ASSERT_TRUE(initialized_); }
   void TearDown() override { std::remove(path_.c_str()); }
   static inline bool initialized_ = false;
