@@ -2,7 +2,8 @@
 // clock, no master and no OpenNI2: a missing device, a device lost mid-run, streams that follow
 // the subscribers, and a recording deleted, truncated or replaced while it plays.
 #include "tabletop_shapes/core/camera_session.h"
-#include "tabletop_shapes/sim/oni_writer.h"
+
+#include "small_recording.h"
 
 #include <gtest/gtest.h>
 
@@ -233,18 +234,7 @@ TEST_F(CameraSessionTest, StreamsRunOnlyWhileSomeoneWantsThem) {
 class RecordingSessionTest : public CameraSessionTest {
  protected:
   void SetUp() override {
-    sim::RgbdFrame frame;
-    frame.width = 32;
-    frame.height = 24;
-    frame.depth_mm.assign(32 * 24, 1000);
-    sim::OniRecordingOptions options;
-    options.width = 32;
-    options.height = 24;
-    options.with_color = false;
-    std::string error;
-    ASSERT_TRUE(sim::writeOniFile(path_, {frame, frame}, options, &error)) << error;
-    std::ifstream file(path_, std::ios::binary);
-    bytes_.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
+    bytes_ = testing_support::writeSmallRecording(path_);
     ASSERT_GT(bytes_.size(), 3000u);
   }
   void TearDown() override { std::remove(path_.c_str()); }
