@@ -35,8 +35,11 @@ class ClusteringNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& node = getNodeHandle();
     ros::NodeHandle& private_node = getPrivateNodeHandle();
-    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
+    // Start-up values are checked before anything holds the nodelet's callback queues: the
+    // loader destroys a nodelet whose onInit throws after those queues, and a live timer or
+    // subscriber then crashes the process before the refusal is printed.
     bridge::seedCoreDefaults(private_node, {"clustering"});
+    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ClusteringConfig>>(
         reconfigure_mutex_, private_node);
     reconfigure_->setCallback([this](ClusteringConfig& config, uint32_t) {

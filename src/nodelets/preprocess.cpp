@@ -34,8 +34,11 @@ class PreprocessNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& node = getNodeHandle();
     ros::NodeHandle& private_node = getPrivateNodeHandle();
-    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
+    // Start-up values are checked before anything holds the nodelet's callback queues: the
+    // loader destroys a nodelet whose onInit throws after those queues, and a live timer or
+    // subscriber then crashes the process before the refusal is printed.
     bridge::seedCoreDefaults(private_node, {"preprocess"});
+    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<PreprocessConfig>>(
         reconfigure_mutex_, private_node);
     reconfigure_->setCallback([this](PreprocessConfig& config, uint32_t) {

@@ -46,6 +46,12 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& node = getNodeHandle();
     ros::NodeHandle& private_node = getPrivateNodeHandle();
+    // Start-up values are checked before anything holds the nodelet's callback queues: the
+    // loader destroys a nodelet whose onInit throws after those queues, and a live timer or
+    // subscriber then crashes the process before the refusal is printed.
+    const std::vector<std::string> stages{"normals",  "predictor", "cube",
+                                          "cylinder", "cone",      "shapes"};
+    bridge::seedCoreDefaults(private_node, stages);
     monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     output_frame_ = private_node.param<std::string>("output_frame", "");
     tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
@@ -53,9 +59,6 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
     }
-    const std::vector<std::string> stages{"normals",  "predictor", "cube",
-                                          "cylinder", "cone",      "shapes"};
-    bridge::seedCoreDefaults(private_node, stages);
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ShapeEstimationConfig>>(
         reconfigure_mutex_, private_node);
     reconfigure_->setCallback([this, stages](ShapeEstimationConfig& config, uint32_t) {

@@ -48,8 +48,10 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& node = getNodeHandle();
     ros::NodeHandle& private_node = getPrivateNodeHandle();
-    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
-
+    // Start-up values are checked before anything holds the nodelet's callback queues: the
+    // loader destroys a nodelet whose onInit throws after those queues, and a live timer or
+    // subscriber then crashes the process before the refusal is printed.
+    bridge::seedCoreDefaults(private_node, {"table"});
     up_frame_ = private_node.param<std::string>("up_frame", "");
     tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
     try {
@@ -59,6 +61,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       NODELET_FATAL("%s", error.what());
       throw;
     }
+    monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     const std::string up_source = !up_frame_.empty() ? "+z of frame " + up_frame_
                                   : up_.automatic    ? "estimated from the scene in every frame"
                                                      : formatUp(up_.vector) + " in the cloud frame";
@@ -68,7 +71,6 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
     }
 
-    bridge::seedCoreDefaults(private_node, {"table"});
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<TableSegmentationConfig>>(
         reconfigure_mutex_, private_node);
     reconfigure_->setCallback([this](TableSegmentationConfig& config, uint32_t) {

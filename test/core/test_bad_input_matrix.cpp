@@ -4,6 +4,7 @@
 // speed is measured by make benchmark-speed. Scenes are built in the table frame (z up, the table
 // at z = 0), seen from kCamera, and run in the camera-centred frame (the camera at the origin, as a
 // sensor's cloud).
+#include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
 
 #include "synthetic.h"
@@ -14,6 +15,8 @@
 #include <chrono>
 #include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace tabletop_shapes {
 namespace {
@@ -55,10 +58,9 @@ struct Outcome {
   double seconds;
 };
 
-Outcome run(const Cloud& table_frame_cloud) {
+Outcome run(const Cloud& table_frame_cloud, PipelineParams params = PipelineParams()) {
   Cloud cloud = table_frame_cloud;
   for (Point& p : cloud.points) p.getVector3fMap() -= kCamera;
-  PipelineParams params;
   params.table.up = Eigen::Vector3f::UnitZ();
   Pipeline pipeline(params);
   const auto start = std::chrono::steady_clock::now();
@@ -230,6 +232,47 @@ TEST(BadInputMatrix, FiveMillionPoints) {
   EXPECT_EQ(outcome.result.objects[0].type, ShapeType::Cube)
       << shapeTypeName(outcome.result.objects[0].type) << " " << outcome.result.objects[0].reason;
   std::printf("5 million points: %.2f s\n", outcome.seconds);
+}
+
+// Every tunable (the dynamic_reconfigure parameters are the same table) at its minimum and at
+// its maximum, on a table with a box: the pipeline answers (a table or the reason there is
+// none; finite objects), or validateParams refuses the set naming the parameter (a pair whose
+// low end would lie above its high end). Nothing crashes or is clamped.
+TEST(BadInputMatrix, EveryParameterAtItsMinimumAndItsMaximum) {
+  Cloud cloud = table(0.01f);
+  cloud += *synthetic::box({0.15f, 0.1f, 0.08f}, {0.0f, 0.8f}, 0.3f, camera());
+  std::vector<ParameterInfo> table_entries;
+  PipelineParams defaults;
+  forEachParameter(defaults,
+                   [&](const ParameterInfo& info, double&) { table_entries.push_back(info); });
+  ASSERT_GT(table_entries.size(), 30u);
+  int runs = 0, refused = 0;
+  for (const ParameterInfo& info : table_entries) {
+    for (const double value : {info.min, info.max}) {
+      const std::string name = std::string(info.stage) + "." + info.name;
+      SCOPED_TRACE(name + " = " + std::to_string(value));
+      PipelineParams params;
+      std::string error;
+      ASSERT_TRUE(setParameter(params, info.stage, info.name, value, error)) << error;
+      if (!validateParams(params, error)) {
+        EXPECT_NE(error.find(name), std::string::npos) << error;
+        ++refused;
+        continue;
+      }
+      const Outcome outcome = run(cloud, params);
+      ++runs;
+      EXPECT_TRUE(outcome.result.table.found || !outcome.result.table.reason.empty());
+      for (const ShapeFit& fit : outcome.result.objects) {
+        if (!fit.ok) continue;
+        EXPECT_TRUE(fit.center.allFinite());
+        EXPECT_TRUE(fit.dimensions.allFinite());
+      }
+      if (outcome.seconds > 5.0)
+        std::printf("%s = %g: %.1f s\n", name.c_str(), value, outcome.seconds);
+    }
+  }
+  std::printf("%d parameter extremes run, %d refused as contradictory pairs\n", runs, refused);
+  EXPECT_EQ(runs + refused, static_cast<int>(2 * table_entries.size()));
 }
 
 }  // namespace

@@ -2,7 +2,8 @@
 // recordings written by the sim library's writer and then damaged as a disk, a copy or a user
 // would: deleted, truncated, overwritten, replaced by another kind of file.
 #include "tabletop_shapes/core/oni_recording.h"
-#include "tabletop_shapes/sim/oni_writer.h"
+
+#include "small_recording.h"
 
 #include <gtest/gtest.h>
 
@@ -19,18 +20,7 @@ namespace {
 class OniRecordingTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    sim::RgbdFrame frame;
-    frame.width = 32;
-    frame.height = 24;
-    frame.depth_mm.assign(32 * 24, 1000);
-    sim::OniRecordingOptions options;
-    options.width = 32;
-    options.height = 24;
-    options.with_color = false;
-    std::string error;
-    ASSERT_TRUE(sim::writeOniFile(path_, {frame, frame}, options, &error)) << error;
-    std::ifstream file(path_, std::ios::binary);
-    bytes_.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
+    bytes_ = testing_support::writeSmallRecording(path_);
     ASSERT_GT(bytes_.size(), 3000u);
   }
   void TearDown() override { std::remove(path_.c_str()); }

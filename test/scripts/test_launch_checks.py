@@ -124,6 +124,30 @@ class LaunchChecks(unittest.TestCase):
         self.assertNotEqual(proc.returncode, 0, proc.stdout + proc.stderr)
         self.assertIn("/table_segmentation/up: " + UP_ERROR % "0,0", proc.stdout + proc.stderr)
 
+    def test_nodelets_refuse_out_of_range_start_up_parameters(self):
+        # Each stage nodelet, one value outside the core's bounds set before it starts: the load
+        # fails with the value named (it once crashed in the failed nodelet's destructor first,
+        # silently), never a clamped value run with.
+        self.started.append(subprocess.Popen(["rosmaster", "--core", "-p", str(self.port)],
+                                             env=self.env, stdout=subprocess.DEVNULL,
+                                             stderr=subprocess.DEVNULL))
+        cases = [("Preprocess", "preprocess", "_leaf_size:=0.5",
+                  "/preprocess/leaf_size: preprocess.leaf_size = 0.5 is outside [0, 0.1]"),
+                 ("TableSegmentation", "table_segmentation", "_min_inliers:=2",
+                  "/table_segmentation/min_inliers: table.min_inliers = 2 is outside [3, 1e+07]"),
+                 ("Clustering", "clustering", "_min_size:=0",
+                  "/clustering/min_size: clustering.min_size = 0 is outside [1, 1e+07]"),
+                 ("ShapeEstimation", "shape_estimation", "_threshold:=-1",
+                  "/shape_estimation/threshold: predictor.threshold = -1 is outside [0, 4]")]
+        for nodelet, name, argument, message in cases:
+            with self.subTest(nodelet=nodelet):
+                proc = subprocess.run(["rosrun", "nodelet", "nodelet", "standalone",
+                                       "tabletop_shapes/" + nodelet, "__name:=" + name, argument],
+                                      env=self.env, text=True, capture_output=True, timeout=60)
+                out = proc.stdout + proc.stderr
+                self.assertIn(proc.returncode, (1, 255), out)  # refused, not crashed (139)
+                self.assertIn("refused start-up parameters: " + message, out)
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -6,6 +6,7 @@
 #include "tabletop_shapes/core/parameter_table.h"
 
 #include <boost/any.hpp>
+#include <ros/console.h>
 #include <ros/node_handle.h>
 
 #include <algorithm>
@@ -142,7 +143,11 @@ inline void seedCoreDefaults(ros::NodeHandle& private_node,
   });
   std::string contradiction;
   if (errors.empty() && !validateParams(given, contradiction)) fail(contradiction);
-  if (!errors.empty()) throw std::invalid_argument(errors);
+  if (!errors.empty()) {
+    // Logged here too: the loader's own message does not name the cause.
+    ROS_FATAL_STREAM("refused start-up parameters: " << errors);
+    throw std::invalid_argument(errors);
+  }
 }
 
 }  // namespace bridge
