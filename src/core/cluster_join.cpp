@@ -88,17 +88,6 @@ std::vector<CloudPtr> mergeGroups(const std::vector<CloudPtr>& clusters, std::ve
   return joined;
 }
 
-// Whether some point of `a` lies within `distance` of `b`.
-bool touches(const CloudPtr& a, const CloudPtr& b, float distance) {
-  pcl::KdTreeFLANN<Point> tree;
-  tree.setInputCloud(b);
-  std::vector<int> nearest(1);
-  std::vector<float> squared(1);
-  return std::any_of(a->begin(), a->end(), [&](const Point& p) {
-    return tree.nearestKSearch(p, 1, nearest, squared) > 0 && squared[0] < distance * distance;
-  });
-}
-
 }  // namespace
 
 std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, const Plane& table,
@@ -246,8 +235,10 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   auto touch = [&](size_t a, size_t b) {
     int8_t& known = touching[std::min(a, b) * clusters.size() + std::max(a, b)];
     if (known < 0) {
+      float squared = 0.0f;
+      Eigen::Vector3f from, to;
       known = boxes[a].squaredExteriorDistance(boxes[b]) < kTouching * kTouching &&
-              touches(clusters[a], clusters[b], kTouching);
+              closestPair(a, b, squared, from, to) && squared < kTouching * kTouching;
     }
     return known > 0;
   };
