@@ -49,6 +49,12 @@ constexpr float kMaxGap = 0.3f;
 constexpr float kSightAngle = 0.01f;       // [rad]
 constexpr float kOccluderInFront = 0.02f;  // [m]
 
+// Clusters nearer than this touch [m]: the split (cluster_split.h) parted them at a concave
+// seam, as two objects side by side, and they are not joined again as the parts of an object
+// hidden in the middle, which are separate Euclidean clusters, at least clustering.tolerance
+// (2 cm) apart.
+constexpr float kTouching = 0.01f;
+
 struct Footprint {
   float top = 0.0f;                   // highest point above the table [m]
   std::vector<Eigen::Vector2f> hull;  // convex hull on the table, in (u, v)
@@ -224,6 +230,26 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
     to = (*clusters[b])[best_b].getVector3fMap();
     return true;
   };
+  // Whether clusters a and b touch, computed once per pair when asked.
+  std::vector<int8_t> touching(clusters.size() * clusters.size(), -1);
+  auto touch = [&](size_t a, size_t b) {
+    int8_t& known = touching[std::min(a, b) * clusters.size() + std::max(a, b)];
+    if (known < 0) {
+      float squared = 0.0f;
+      Eigen::Vector3f from, to;
+      known = boxes[a].squaredExteriorDistance(boxes[b]) < kTouching * kTouching &&
+              closestPair(a, b, squared, from, to) && squared < kTouching * kTouching;
+    }
+    return known > 0;
+  };
+  // Two objects with a third touching both between them (a block of touching objects, split
+  // apart) are not the two sides of one object: its middle would be that third object.
+  auto bridged = [&](size_t a, size_t b) {
+    for (size_t c = 0; c < clusters.size(); ++c) {
+      if (c != a && c != b && touch(a, c) && touch(b, c)) return true;
+    }
+    return false;
+  };
   std::vector<int> parent(clusters.size());
   std::iota(parent.begin(), parent.end(), 0);
   for (size_t a = 0; a < clusters.size(); ++a) {
@@ -235,7 +261,7 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
       Eigen::Vector3f from = Eigen::Vector3f::Zero(), to = from;
       if (!closestPair(a, b, shortest, from, to)) continue;
       const float gap = std::sqrt(shortest);
-      if (gap > kMaxGap) continue;
+      if (gap > kMaxGap || gap < kTouching || bridged(a, b)) continue;
       // Samples every kGapStep at least kGapEnd from both ends; the midpoint of a shorter gap.
       const float first = std::min(kGapEnd, gap / 2), last = std::max(gap - kGapEnd, gap / 2);
       bool explained = true;

@@ -5,6 +5,7 @@
 
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/voxel_key.h"
 
 #include <pcl/segmentation/lccp_segmentation.h>
 #include <pcl/segmentation/supervoxel_clustering.h>
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <set>
 
 namespace tabletop_shapes {
 namespace {
@@ -31,6 +33,32 @@ struct ConvexParts {
   std::vector<Seam> seams;       // supervoxel adjacencies between different parts
 };
 
+// A point's coordinates in the table plane (its footprint).
+class TableProjection {
+ public:
+  explicit TableProjection(const Plane& table)
+      : u_(table.normal.unitOrthogonal()), v_(table.normal.cross(u_)) {}
+  Eigen::Vector2f operator()(const Point& p) const {
+    return {u_.dot(p.getVector3fMap()), v_.dot(p.getVector3fMap())};
+  }
+
+ private:
+  Eigen::Vector3f u_, v_;
+};
+
+// How far depth noise smears a vertical face sideways at `range` [m]; a lower object may stick
+// out from under a wider one by only a centimetre (a box lying across two): the floor stays
+// below that.
+float sidewaysSmear(float range, const ClusteringParams& params) {
+  return std::max(0.005f, 2.0f * params.split_depth_step * range * range);
+}
+
+Eigen::Vector3f centroidOf(const Cloud& cloud) {
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : cloud) centroid += p.getVector3fMap();
+  return centroid / static_cast<float>(std::max<size_t>(cloud.size(), 1));
+}
+
 // Supervoxel edge length for a cluster at `range` from the camera. Beyond ~1.5 m the depth
 // steps of a disparity camera (growing with range^2) cut a surface into terraces farther apart
 // than 6 mm voxels; non-adjacent voxels leave a disconnected supervoxel graph, and its pieces
@@ -43,10 +71,7 @@ float supervoxelResolution(float range, const ClusteringParams& params) {
 }
 
 ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& params) {
-  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
-  for (const auto& p : *cluster) centroid += p.getVector3fMap();
-  centroid /= static_cast<float>(cluster->size());
-  const float voxel = supervoxelResolution(centroid.norm(), params);
+  const float voxel = supervoxelResolution(centroidOf(*cluster).norm(), params);
   pcl::SupervoxelClustering<Point> supervoxel(voxel, std::max(params.split_patch_size, 2 * voxel));
   supervoxel.setUseSingleCameraTransform(false);
   supervoxel.setColorImportance(0.0f);
@@ -166,17 +191,76 @@ void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tre
   }
 }
 
-// Neighbouring parts rejoin when no concave seam parts them, or when their tops lie within
-// kStackStep of each other. On a table a concave seam between objects that matters here is one
-// object standing or leaning on another, whose top then rises above the lower one's. Parts of
-// one object cut apart by noise or by the concave inside of a cup or bowl end at the same top
-// (rim) and are joined again. Parts that touch without any supervoxel seam between them were
-// cut apart by a gap in the samples (an edge lost to the camera's near range, depth steps),
-// not by a seam. (Touching objects of equal height therefore stay one cluster.)
+// Whether two parts stand one over the other rather than side by side: most points of the
+// smaller lie over the footprint of the larger (within `smear`). The inside of a cup lies within
+// its rim, a box face cut off by noise along the edge of the face next to it; two objects
+// touching side by side cover different parts of the table.
+bool footprintsOverlap(const Cloud& cluster, const std::vector<uint32_t>& labels, uint32_t a,
+                       uint32_t b, const TableProjection& onTable, float smear) {
+  std::vector<Eigen::Vector2f> footprint_a, footprint_b;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    if (labels[i] == a) footprint_a.push_back(onTable(cluster[i]));
+    if (labels[i] == b) footprint_b.push_back(onTable(cluster[i]));
+  }
+  if (footprint_a.size() > footprint_b.size()) std::swap(footprint_a, footprint_b);
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(footprint_b);
+  if (hull.size() < 3) return true;  // a degenerate larger part: no footprint to judge by
+  const auto over = std::count_if(footprint_a.begin(), footprint_a.end(),
+                                  [&](const auto& q) { return insideDistance(hull, q) >= -smear; });
+  return 2 * static_cast<size_t>(over) >= footprint_a.size();
+}
 
+// Cells of the footprint grid in hasFlatTop [m]: two voxels of the preprocessing grid.
+constexpr float kFootprintCell = 0.01f;
+// A top face: the points within kTopBand of a part's highest point (kStackStep: the highest
+// point is a noisy one) covering at least kFlatTopCover of its footprint cells, and at least
+// kMinTopCells cells (20 cm^2: a can 5 cm across; a mug's handle, 1-2 cm wide, is smaller).
+constexpr float kTopBand = kStackStep;
+constexpr float kFlatTopCover = 0.5f;
+constexpr size_t kMinTopCells = 20;
+// Side by side, tops at least this far apart [m]: the halves of one cup's rim or one box's top
+// cut apart by noise end at the same height within a few millimetres.
+constexpr float kTopStep = 0.01f;
+
+// Whether the part has a top face of its own covering most of its footprint, as the top of a
+// box or can does (its sides project onto the top's edge). A bowl's or mug's rim is a thin ring
+// around the inside seen within it; a piece of it cut off by noise is not flat.
+bool hasFlatTop(const Cloud& cluster, const std::vector<uint32_t>& labels, uint32_t part,
+                float part_top, const Plane& table, const TableProjection& onTable) {
+  std::set<uint64_t> footprint, top_face;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    if (labels[i] != part) continue;
+    const Eigen::Vector2f q = onTable(cluster[i]) / kFootprintCell;
+    const uint64_t cell =
+        voxel_key::pack(voxel_key::floorToInt(q.x()), voxel_key::floorToInt(q.y()), 0);
+    footprint.insert(cell);
+    if (table.signedDistance(cluster[i].getVector3fMap()) >= part_top - kTopBand)
+      top_face.insert(cell);
+  }
+  return top_face.size() >= kMinTopCells && top_face.size() >= kFlatTopCover * footprint.size();
+}
+
+// Neighbouring parts rejoin when no concave seam parts them, or when their tops lie within
+// kStackStep of each other, unless they stand side by side. On a table a concave seam between
+// objects that matters here is one object standing or leaning on another, whose top then rises
+// above the lower one's, or two objects touching side by side, each over its own part of the
+// table under its own flat top (a block of boxes and cans; issue 15). Parts of one object cut
+// apart by noise or by the concave inside of a cup or bowl end at the same top (rim) and are
+// joined again. Parts that touch without any supervoxel seam between them were cut apart by a
+// gap in the samples (an edge lost to the camera's near range, depth steps), not by a seam,
+// unless side by side: then the gap is the depth jump from one object's top edge to the one
+// behind it. (Touching objects whose tops lie within kTopStep of each other, or meet without
+// a concave seam, stay one cluster.)
 void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point>& tree,
-                           const Plane& table, ConvexParts& parts) {
+                           const Plane& table, float smear, ConvexParts& parts) {
+  const TableProjection onTable(table);
   std::vector<uint32_t>& labels = parts.labels;
+  auto sideBySide = [&](uint32_t a, float a_top, uint32_t b, float b_top) {
+    return std::abs(a_top - b_top) >= kTopStep &&
+           !footprintsOverlap(cluster, labels, a, b, onTable, smear) &&
+           hasFlatTop(cluster, labels, a, a_top, table, onTable) &&
+           hasFlatTop(cluster, labels, b, b_top, table, onTable);
+  };
   for (bool merged = true; merged;) {
     merged = false;
     std::map<uint32_t, float> top;
@@ -190,8 +274,9 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
     }
     for (const auto& [part, part_top] : top) {
       for (const auto& [other, n] : neighbourVotes(cluster, tree, labels, part)) {
-        if (seamRank(parts.seams, part, other) == 1 ||
-            std::abs(top[other] - part_top) <= kStackStep) {
+        const bool same_top = std::abs(top[other] - part_top) <= kStackStep;
+        if ((same_top || seamRank(parts.seams, part, other) == 1) &&
+            !sideBySide(part, part_top, other, top[other])) {
           relabel(parts, part, other);
           merged = true;
           break;
@@ -207,16 +292,8 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params) {
   if (cluster.empty()) return false;
   float top = -std::numeric_limits<float>::infinity();
-  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
-  for (const auto& p : cluster) {
-    top = std::max(top, table.signedDistance(p.getVector3fMap()));
-    centroid += p.getVector3fMap();
-  }
-  centroid /= static_cast<float>(cluster.size());
-  const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
-  auto onTable = [&](const Point& p) {
-    return Eigen::Vector2f(u.dot(p.getVector3fMap()), v.dot(p.getVector3fMap()));
-  };
+  for (const auto& p : cluster) top = std::max(top, table.signedDistance(p.getVector3fMap()));
+  const TableProjection onTable(table);
   std::vector<Eigen::Vector2f> top_band;
   for (const auto& p : cluster) {
     if (table.signedDistance(p.getVector3fMap()) >= top - kStackStep)
@@ -226,10 +303,7 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   if (hull.size() < 3) return true;  // a ridge or a spike on top: no footprint to judge by
   // Depth noise smears a vertical face sideways, more with range; the lower part of a stack
   // needs split_min_points, a tenth of them beyond the smear is plenty of evidence.
-  const float range = centroid.norm();
-  // A lower object may stick out from under a wider one by only a centimetre (a box lying
-  // across two): the smear's floor stays below that.
-  const float smear = std::max(0.005f, 2.0f * params.split_depth_step * range * range);
+  const float smear = sidewaysSmear(centroidOf(cluster).norm(), params);
   const int needed = std::max(10, params.split_min_points / 10);
   int beside = 0;
   for (const auto& p : cluster) {
@@ -254,7 +328,8 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
   GridSearch<Point> tree(kVoteSearchCell, false);
   tree.setInputCloud(cluster);
   mergeSmallParts(*cluster, tree, min_points, convex_parts);
-  mergeUnseparatedParts(*cluster, tree, table, convex_parts);
+  mergeUnseparatedParts(*cluster, tree, table, sidewaysSmear(centroidOf(*cluster).norm(), params),
+                        convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
   for (size_t i = 0; i < convex_parts.labels.size(); ++i)

@@ -202,6 +202,55 @@ TEST(ClusterSplit, OpenCupWithHandleStaysWhole) {
   EXPECT_EQ(parts[0]->size(), size);
 }
 
+// Points of `cloud` except those with x in [x0, x1] and y in [y0, y1] below `height`: a face
+// in the 2 mm gap between two touching objects, hidden by the neighbour up to its top.
+CloudPtr withoutGapFace(const CloudPtr& cloud, float x0, float x1, float y0, float y1,
+                        float height) {
+  auto out = std::make_shared<Cloud>();
+  for (const auto& p : *cloud) {
+    if (!(p.x >= x0 && p.x <= x1 && p.y >= y0 && p.y <= y1 && p.z < height)) out->push_back(p);
+  }
+  return out;
+}
+
+// Boxes 10 x 9 cm in a row away from the camera (along y), 2 mm apart, as the camera sees them:
+// each one's front face is hidden below the top of the box in front of it.
+std::vector<CloudPtr> touchingBoxes(const std::vector<float>& heights) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const float pitch = 0.092f, first = -pitch * (heights.size() - 1) / 2;
+  std::vector<CloudPtr> boxes;
+  for (size_t i = 0; i < heights.size(); ++i) {
+    const float y = first + pitch * i, front = y - 0.045f;
+    CloudPtr box = synthetic::box({0.10f, 0.09f, heights[i]}, {0.0f, y}, 0.0f, s);
+    if (i > 0)
+      box = withoutGapFace(box, -1.0f, 1.0f, front - 0.001f, front + 0.001f, heights[i - 1]);
+    boxes.push_back(box);
+  }
+  return boxes;
+}
+
+Cloud together(const std::vector<CloudPtr>& objects) {
+  Cloud scene;
+  for (const CloudPtr& object : objects) scene += *object;
+  return scene;
+}
+
+TEST(ClusterSplit, TouchingBoxesOfNearlyEqualHeightComeApart) {
+  // The two back boxes' tops lie 1.8 cm apart: as pieces of one object's top they were joined
+  // again (2 parts); they stand side by side, each over its own part of the table under its own
+  // flat top, and stay apart.
+  const std::vector<CloudPtr> boxes = touchingBoxes({0.07f, 0.11f, 0.128f});
+  expectPartsMatch(split(together(boxes)), boxes);
+}
+
+TEST(ClusterSplit, CanTouchingABoxComesApart) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const CloudPtr box = synthetic::box({0.10f, 0.09f, 0.16f}, {0.0f, 0.0f}, 0.0f, s);
+  CloudPtr can = synthetic::roundObject(0.045f, 0.045f, 0.10f, {0.097f, 0.0f}, s);
+  can = withoutGapFace(can, 0.0f, 0.056f, -1.0f, 1.0f, 0.16f);  // its side in the gap
+  expectPartsMatch(split(together({box, can})), {box, can});
+}
+
 TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
