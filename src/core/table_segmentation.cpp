@@ -585,8 +585,11 @@ bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams&
 // RANSAC sliver through box tops and noise, never a support (seen on rendered scenes at 0.6-1.3 m).
 // `support_objects`, when given, receives the chosen plane's object points (objectIndices), which
 // the selection has computed already for a plane with objects.
+// `with_objects`, when given, tells whether the chosen plane passed the rules and carries objects.
 int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
-                  const TableParams& params, std::vector<int>* support_objects = nullptr) {
+                  const TableParams& params, std::vector<int>* support_objects = nullptr,
+                  bool* with_objects = nullptr) {
+  if (with_objects) *with_objects = false;
   if (candidates.empty()) return -1;
   std::vector<int> order(candidates.size());
   std::iota(order.begin(), order.end(), 0);
@@ -606,6 +609,7 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
     objectIndices(cloud, candidate, params, objects);
     if (static_cast<int>(objects.size()) >= kMinSupportedPoints) {
       if (support_objects) support_objects->swap(objects);
+      if (with_objects) *with_objects = true;
       return order[rank];
     }
   }
@@ -659,6 +663,36 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
   return band_points;
 }
 
+// On a table mostly covered by boxes, planes tilted 5-7 deg through box tops and the table's
+// gaps (within up_tolerance_deg) can have the most inliers and take every search: the table is
+// then no candidate and the floor, level with up, is chosen (rendered covered clutter, issue
+// 15). When the chosen support is level with `up` (within 4 deg, so up is right) and some
+// candidate is tilted, the level planes are searched alone; a level support with objects above
+// the chosen one replaces it (candidates, chosen and objects). An up known only roughly (the
+// table tilted against it) keeps the wide search's choice.
+void preferHigherLevelSupport(const Cloud& cloud, const TableParams& params,
+                              const Eigen::Vector3f& up, std::vector<Candidate>& candidates,
+                              int& chosen, std::vector<int>& objects) {
+  auto level = [&](const Candidate& c) { return c.plane.normal.dot(up) >= kParallelCosine; };
+  if (chosen < 0 || !level(candidates[chosen]) ||
+      std::all_of(candidates.begin(), candidates.end(), level)) {
+    return;
+  }
+  std::vector<Candidate> level_candidates =
+      findPlanes(cloud, params, NormalConstraint{up, kParallelCosine, false});
+  std::vector<int> level_objects;
+  bool with_objects = false;
+  const int level_chosen =
+      selectSupport(cloud, level_candidates, params, &level_objects, &with_objects);
+  if (!with_objects ||
+      !(level_candidates[level_chosen].plane.d < candidates[chosen].plane.d - params.min_height)) {
+    return;
+  }
+  candidates.swap(level_candidates);
+  chosen = level_chosen;
+  objects.swap(level_objects);
+}
+
 }  // namespace
 
 TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
@@ -679,8 +713,8 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   const NormalConstraint constraint{params_.up / up_norm,
                                     std::cos(degToRad(params_.up_tolerance_deg)), false};
   std::vector<std::string> refused;
-  std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
   const bool height_known = params_.camera_height > 0.0f;
+  std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
   if (height_known && supportAtKnownHeight(*cloud, candidates, params_) < 0) {
     const std::vector<int> band = pointsAtKnownHeight(*cloud, constraint.axis, params_);
     std::vector<Candidate> at_height = findPlanes(*cloud, params_, constraint, &refused, &band);
@@ -719,6 +753,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
     objectIndices(*cloud, candidates[chosen], params_, objects);
   } else {
     chosen = selectSupport(*cloud, candidates, params_, &objects);
+    preferHigherLevelSupport(*cloud, params_, constraint.axis, candidates, chosen, objects);
   }
   const Candidate& table = candidates[chosen];
 
