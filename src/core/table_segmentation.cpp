@@ -663,6 +663,9 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
   return band_points;
 }
 
+// The least height of a table top above the floor it stands on [m] (a coffee table: 0.4 m).
+constexpr float kTableAboveFloor = 0.3f;
+
 // On a table mostly covered by boxes, planes tilted 5-7 deg through box tops and the table's
 // gaps (within up_tolerance_deg) can have the most inliers and take every search: the table is
 // then no candidate and the floor, level with up, is chosen (rendered covered clutter, issue
@@ -673,9 +676,6 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
 // chosen one must stand at least kTableAboveFloor above it: a level plane a few centimetres up
 // cuts the objects' sides (a rendered paper scene: 1000 inliers 2 cm above the 37306 of its
 // table replaced it), a table stands well above the floor.
-// The least height of a table top above the floor it stands on [m] (a coffee table: 0.4 m).
-constexpr float kTableAboveFloor = 0.3f;
-
 void preferHigherLevelSupport(const Cloud& cloud, const TableParams& params,
                               const Eigen::Vector3f& up, std::vector<Candidate>& candidates,
                               int& chosen, std::vector<int>& objects) {
