@@ -924,4 +924,14 @@ bool estimateUp(const CloudConstPtr& cloud, const TableParams& params, Eigen::Ve
   return true;
 }
 
+bool tableIsTheDominantLevelPlane(const Cloud& cloud, const TableResult& table) {
+  if (!table.found || !(table.plane.signedDistance(cloud.sensor_origin_.head<3>()) > 0.0f) ||
+      !(-table.plane.normal.y() >= kMinImageUpCosine)) {
+    return false;
+  }
+  size_t finite = 0;
+  for (const auto& p : cloud.points) finite += p.getVector3fMap().allFinite();
+  return 2 * static_cast<size_t>(table.inliers) > finite;
+}
+
 }  // namespace tabletop_shapes

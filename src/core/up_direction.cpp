@@ -74,7 +74,12 @@ std::string formatUp(const Eigen::Vector3f& up) {
 UpCheck checkUpAgainstScene(const CloudConstPtr& cloud, const TableParams& params,
                             const TableResult& table) {
   UpCheck check;
-  check.scene_up_found = estimateUp(cloud, params, check.scene_up);
+  if (cloud && tableIsTheDominantLevelPlane(*cloud, table)) {
+    check.from_table = check.scene_up_found = true;
+    check.scene_up = table.plane.normal;
+  } else {
+    check.scene_up_found = estimateUp(cloud, params, check.scene_up);
+  }
   if (!check.scene_up_found) return check;
   check.up_angle_deg = angleDeg(params.up, check.scene_up);
   if (table.found) check.table_angle_deg = angleDeg(table.plane.normal, check.scene_up);

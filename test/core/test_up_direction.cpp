@@ -89,6 +89,11 @@ sim::RenderedScene tiltedScene() {
   return sim::renderScene(sim::paperScene({1.0f, 40.0f, 20.0f}, sim::NoiseModel(), 7));
 }
 
+float angleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0f, 1.0f)) * 180.0f /
+         static_cast<float>(kPi);
+}
+
 CloudPtr xyz(const sim::RenderedScene& scene) {
   auto cloud = std::make_shared<Cloud>();
   pcl::copyPointCloud(*scene.cloud, *cloud);
@@ -111,6 +116,40 @@ TEST(CheckUpAgainstScene, TheTrueUpPasses) {
   EXPECT_EQ(check.warning, "");
 }
 
+TEST(CheckUpAgainstScene, ATableHoldingMostPointsGivesTheScenesUpWithoutAPlaneSearch) {
+  const sim::RenderedScene scene = tiltedScene();
+  const CloudPtr cloud = xyz(scene);
+  TableParams params;
+  params.up = scene.up;
+  const TableResult table = TableSegmenter(params).segment(cloud);
+  ASSERT_TRUE(table.found) << table.reason;
+  size_t finite = 0;
+  for (const auto& p : cloud->points) finite += p.getVector3fMap().allFinite();
+  ASSERT_GT(2 * static_cast<size_t>(table.inliers), finite);  // the table is most of the view
+  const UpCheck check = checkUpAgainstScene(cloud, params, table);
+  EXPECT_TRUE(check.from_table);
+  EXPECT_EQ(check.scene_up, table.plane.normal);
+  Eigen::Vector3f searched;
+  ASSERT_TRUE(estimateUp(cloud, params, searched));
+  EXPECT_LT(angleDeg(check.scene_up, searched), 1.0f);  // what the plane search finds
+  EXPECT_EQ(check.warning, "");
+
+  // A wall filling as much of the view as the table: the table is no longer most of the
+  // points, and the plane search decides (it still finds the table's up).
+  auto walled = std::make_shared<Cloud>(*cloud);
+  const size_t wall_points = finite;
+  for (size_t i = 0; i < wall_points; ++i) {  // 5 mm grid, 2 m in front of the camera
+    const float x = -1.0f + 0.005f * static_cast<float>(i % 400);
+    const float y = -1.0f + 0.005f * static_cast<float>(i / 400 % 400);
+    walled->push_back(Point(x, y, 2.0f + 0.005f * static_cast<float>(i / 160000)));
+  }
+  const UpCheck walled_check = checkUpAgainstScene(walled, params, table);
+  EXPECT_FALSE(walled_check.from_table);
+  ASSERT_TRUE(walled_check.scene_up_found);
+  EXPECT_LT(angleDeg(walled_check.scene_up, scene.up), 3.0f);
+  EXPECT_EQ(walled_check.warning, "");
+}
+
 TEST(CheckUpAgainstScene, TheLevelCameraGuessOnATiltedCameraIsWarnedWithItsAngle) {
   const sim::RenderedScene scene = tiltedScene();
   const CloudPtr cloud = xyz(scene);
@@ -124,17 +163,13 @@ TEST(CheckUpAgainstScene, TheLevelCameraGuessOnATiltedCameraIsWarnedWithItsAngle
   EXPECT_EQ(check.warning.rfind("up [0.000, -1.000, 0.000] is 40 deg from the scene's up [", 0), 0u)
       << check.warning;
   EXPECT_NE(check.warning.find("check up / up_frame"), std::string::npos) << check.warning;
+  EXPECT_FALSE(check.from_table);
 }
 
 namespace {
 
 sim::RenderedScene sceneAtPitch(float pitch_deg) {
   return sim::renderScene(sim::paperScene({1.0f, pitch_deg, 20.0f}, sim::NoiseModel(), 7));
-}
-
-float angleDeg(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0f, 1.0f)) * 180.0f /
-         static_cast<float>(kPi);
 }
 
 }  // namespace

@@ -46,4 +46,10 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
 // chosen as TableSegmenter does. Returns false when no candidate plane is found.
 bool estimateUp(const CloudConstPtr& cloud, const TableParams& params, Eigen::Vector3f& up);
 
+// True when `table` holds more than half of the cloud's finite points and is a plane estimateUp
+// takes up from (the camera above it, its normal up in the image): no other direction's planes
+// can outnumber it, so estimateUp's answer is this table's normal (up to the up_tolerance_deg
+// it allows among parallel planes) without its plane search.
+bool tableIsTheDominantLevelPlane(const Cloud& cloud, const TableResult& table);
+
 }  // namespace tabletop_shapes

@@ -25,7 +25,10 @@ std::string formatUp(const Eigen::Vector3f& up);
 struct UpCheck {
   bool scene_up_found = false;                         // estimateUp found level planes
   Eigen::Vector3f scene_up = Eigen::Vector3f::Zero();  // up estimated from the scene
-  float up_angle_deg = 0.0f;                           // between the given up and the scene's up
+  // The table holds most of the scene's points (tableIsTheDominantLevelPlane): scene_up is its
+  // normal, and estimateUp's plane search (as costly as the table stage) was not needed.
+  bool from_table = false;
+  float up_angle_deg = 0.0f;     // between the given up and the scene's up
   float table_angle_deg = 0.0f;  // between the chosen table's normal and the scene's up
   std::string warning;           // empty when both lie within up_tolerance_deg
 };
@@ -33,6 +36,7 @@ struct UpCheck {
 // Compares `params.up` and, when found, the table chosen with it against the up the scene
 // shows (estimateUp): a given up that is off by more than up_tolerance_deg finds a wrong
 // "table" (a wall, a box side) and wrong objects while looking fine, so it gets a warning.
+// A table holding most of the scene's points is the scene's up itself (UpCheck::from_table).
 UpCheck checkUpAgainstScene(const CloudConstPtr& cloud, const TableParams& params,
                             const TableResult& table);
 
