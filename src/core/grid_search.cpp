@@ -23,6 +23,23 @@ inline bool finite(const float x, const float y, const float z) {
   return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
 }
 
+// The squared distances from (qx, qy, qz) to the points (xs, ys, zs), in a loop of its own:
+// GCC vectorises it (CMakeLists.txt builds this file with its dynamic cost model; -O2 alone
+// vectorises only loops of known length), with the same float arithmetic per point as
+// radiusSearch.
+void squaredDistances(const std::vector<float>& xs, const std::vector<float>& ys,
+                      const std::vector<float>& zs, float qx, float qy, float qz,
+                      std::vector<float>& squared) {
+  squared.resize(xs.size());
+  const size_t n = xs.size();
+  const float *x = xs.data(), *y = ys.data(), *z = zs.data();
+  float* out = squared.data();
+  for (size_t j = 0; j < n; ++j) {
+    const float dx = x[j] - qx, dy = y[j] - qy, dz = z[j] - qz;
+    out[j] = dx * dx + dy * dy + dz * dz;
+  }
+}
+
 }  // namespace
 
 template <typename PointT>
@@ -259,18 +276,17 @@ void GridSearch<PointT>::forEachNearestK(
     int k, const std::function<void(int, const std::vector<float>&)>& visit) const {
   if (k <= 0) return;
   const size_t wanted = static_cast<size_t>(k);
-  std::vector<float> xs, ys, zs, squared, nearest;
+  std::vector<float> xs, ys, zs, block_squared, squared, nearest;
   pcl::Indices fallback_indices;
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   forEachPointInBlocks(
       [&] { xs.clear(), ys.clear(), zs.clear(); },
       [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
       [&](const Entry& q, float covered_squared) {
+        squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
         squared.resize(xs.size());
         size_t kept = 0;
-        for (size_t j = 0; j < xs.size(); ++j) {
-          const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-          const float d = dx * dx + dy * dy + dz * dz;
+        for (const float d : block_squared) {
           squared[kept] = d;
           kept += d <= covered_squared;
         }
@@ -301,7 +317,7 @@ void GridSearch<PointT>::forEachNearestKIndices(
     int k, const std::function<void(int, const pcl::Indices&)>& visit) const {
   if (k <= 0) return;
   const size_t wanted = static_cast<size_t>(k);
-  std::vector<float> xs, ys, zs, fallback_distances;
+  std::vector<float> xs, ys, zs, squared, fallback_distances;
   std::vector<int> indices;
   std::vector<uint64_t> keys;
   pcl::Indices nearest;
@@ -313,10 +329,10 @@ void GridSearch<PointT>::forEachNearestKIndices(
       [&](const Entry& q, float covered_squared) {
         // (distance, index) as one integer, as forEachRadiusNeighbours: ordered as
         // nearestKSearch orders its pairs, ties by index.
+        squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
         keys.clear();
         for (size_t j = 0; j < xs.size(); ++j) {
-          const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-          const float d = dx * dx + dy * dy + dz * dz;
+          const float d = squared[j];
           if (d <= covered_squared) {
             uint32_t bits;
             std::memcpy(&bits, &d, sizeof bits);
@@ -357,13 +373,9 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
         xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
       });
     }
-    squared.resize(xs.size());
     for (size_t i = begin; i < end; ++i) {
       const Entry& q = points_[i];
-      for (size_t j = 0; j < xs.size(); ++j) {  // the same float arithmetic as radiusSearch
-        const float dx = xs[j] - q.x, dy = ys[j] - q.y, dz = zs[j] - q.z;
-        squared[j] = dx * dx + dy * dy + dz * dz;
-      }
+      squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
       // (distance, index) as one integer: the bits of a float >= 0 order as its value, so
       // sorting the keys orders as radiusSearch's sort of pairs, in fewer instructions.
       keys.clear();
