@@ -12,6 +12,8 @@
 #include "tabletop_shapes/Table.h"
 
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
+#include <ros/spinner.h>
 #include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -19,6 +21,7 @@
 
 #include <cinttypes>
 #include <cstdio>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -29,12 +32,19 @@ namespace tabletop_shapes {
 class LatencyProbeNodelet : public nodelet::Nodelet {
  public:
   ~LatencyProbeNodelet() override {
+    subscribers_.clear();
+    if (spinner_) spinner_->stop();
     if (file_) std::fclose(file_);
   }
 
  private:
   void onInit() override {
-    ros::NodeHandle& node = getNodeHandle();
+    // A queue and a thread of its own: the manager's workers are busy with the chain, and a
+    // message waiting for one of them would be logged late (a latency the chain did not have)
+    // and, for the camera's 10 MB clouds, held in memory meanwhile.
+    ros::NodeHandle node(getNodeHandle());
+    node.setCallbackQueue(&queue_);
+    spinner_ = std::make_unique<ros::AsyncSpinner>(1, &queue_);
     ros::NodeHandle& private_node = getPrivateNodeHandle();
     const std::string output = private_node.param<std::string>("output", "latency.csv");
     file_ = std::fopen(output.c_str(), "w");
@@ -82,6 +92,7 @@ class LatencyProbeNodelet : public nodelet::Nodelet {
             entry.c_str());
       }
     }
+    spinner_->start();
   }
 
   template <typename Message, typename StampOf, typename SizeOf>
@@ -100,6 +111,8 @@ class LatencyProbeNodelet : public nodelet::Nodelet {
         }));
   }
 
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
   FILE* file_ = nullptr;
   std::mutex mutex_;
   std::vector<ros::Subscriber> subscribers_;
