@@ -103,7 +103,8 @@ benchmark-accuracy: build
 	$(BUILD_DIR)/devel/lib/tabletop_shapes/benchmark_accuracy --osd $(OSD_DIR) --out benchmark-output
 
 # Speed: the core alone (per stage, scaling table, plot in benchmark-output/) and the ROS chain
-# in one nodelet manager beside Debian's pcl_ros chain, 300 frames per run (~10 min);
+# in one nodelet manager (PointCloud2 from another process, and the OpenNI2 driver playing an
+# .oni in the manager) beside Debian's pcl_ros chain, 300 frames per run (~13 min quiet);
 # QUICK=1: a few frames each, a smoke run.
 benchmark-speed: build
 	scripts/benchmark_speed $(if $(QUICK),--quick) --build $(BUILD_DIR) --osd $(OSD_DIR) --out benchmark-output

@@ -34,11 +34,20 @@ class BoundedReader {
   // A length-prefixed byte sequence (string or uint8[]).
   template <typename Bytes>
   bool readBytes(Bytes& bytes) {
-    uint32_t length = 0;
-    if (!read(length) || length > left_) return false;
-    bytes.assign(data_, data_ + length);
-    data_ += length;
-    left_ -= length;
+    const uint8_t* start = nullptr;
+    size_t length = 0;
+    if (!skipBytes(start, length)) return false;
+    bytes.assign(start, start + length);
+    return true;
+  }
+  // The same, left where it is: `start` and `length` locate it.
+  bool skipBytes(const uint8_t*& start, size_t& length) {
+    uint32_t claimed = 0;
+    if (!read(claimed) || claimed > left_) return false;
+    start = data_;
+    length = claimed;
+    data_ += claimed;
+    left_ -= claimed;
     return true;
   }
   // An array length, checked against the bytes left for elements of at least `min_bytes`.
@@ -67,19 +76,23 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
 
   ros::VoidConstPtr deserialize(
       const ros::SubscriptionCallbackHelperDeserializeParams& params) override {
-    sensor_msgs::PointCloud2 msg;
-    const std::string unreadable = deserializeCloud(params.buffer, params.length, msg);
+    // The points are read straight from roscpp's buffer: no intermediate PointCloud2 copy.
+    sensor_msgs::PointCloud2 layout;
+    const uint8_t* points = nullptr;
+    size_t point_bytes = 0;
+    const std::string unreadable =
+        deserializeCloudLayout(params.buffer, params.length, layout, points, point_bytes);
     if (!unreadable.empty()) {
-      on_invalid_(msg.header, "unreadable message: " + unreadable);
+      on_invalid_(layout.header, "unreadable message: " + unreadable);
       return {};
     }
-    const std::string invalid = invalidCloudReason(msg, max_points_);
+    const std::string invalid = invalidCloudReason(layout, point_bytes, max_points_);
     if (!invalid.empty()) {
-      on_invalid_(msg.header, invalid);
+      on_invalid_(layout.header, invalid);
       return {};
     }
     auto cloud = boost::make_shared<InputCloud>();
-    readInputCloud(msg, *cloud);
+    readInputCloud(layout, points, *cloud);
     return cloud;
   }
 
@@ -91,6 +104,15 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
 }  // namespace
 
 std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg) {
+  const uint8_t* points = nullptr;
+  size_t point_bytes = 0;
+  const std::string unreadable = deserializeCloudLayout(data, size, msg, points, point_bytes);
+  if (unreadable.empty()) msg.data.assign(points, points + point_bytes);
+  return unreadable;
+}
+
+std::string deserializeCloudLayout(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg,
+                                   const uint8_t*& points, size_t& point_bytes) {
   BoundedReader in(data, size);
   // A field takes at least 13 bytes: name length, offset, datatype, count.
   uint32_t fields = 0;
@@ -109,13 +131,20 @@ std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::Poin
   if (!in.read(msg.is_bigendian) || !in.read(msg.point_step) || !in.read(msg.row_step)) {
     return "steps cut short";
   }
-  if (!in.readBytes(msg.data)) return "data cut short (its length exceeds the message)";
+  if (!in.skipBytes(points, point_bytes)) {
+    return "data cut short (its length exceeds the message)";
+  }
   if (!in.read(msg.is_dense)) return "is_dense missing";
   if (in.left() != 0) return std::to_string(in.left()) + " bytes after the cloud";
   return "";
 }
 
 std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max_points) {
+  return invalidCloudReason(msg, msg.data.size(), max_points);
+}
+
+std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, size_t point_bytes,
+                               uint64_t max_points) {
   const auto str = [](uint64_t value) { return std::to_string(value); };
   // Sizes first, before anything walks the data: a 108-byte message declaring width 0 and
   // height 2^32-1 once stalled the chain for seconds.
@@ -145,18 +174,22 @@ std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max
            " x point_step " + str(msg.point_step);
   }
   const uint64_t declared = static_cast<uint64_t>(msg.row_step) * msg.height;
-  if (declared > msg.data.size()) {
-    return "data shorter than declared: " + str(msg.data.size()) + " bytes, row_step " +
+  if (declared > point_bytes) {
+    return "data shorter than declared: " + str(point_bytes) + " bytes, row_step " +
            str(msg.row_step) + " x height " + str(msg.height) + " = " + str(declared);
   }
-  if (declared < msg.data.size()) {
-    return "data longer than declared: " + str(msg.data.size()) + " bytes, row_step " +
+  if (declared < point_bytes) {
+    return "data longer than declared: " + str(point_bytes) + " bytes, row_step " +
            str(msg.row_step) + " x height " + str(msg.height) + " = " + str(declared);
   }
   return "";
 }
 
 void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud) {
+  readInputCloud(msg, msg.data.data(), cloud);
+}
+
+void readInputCloud(const sensor_msgs::PointCloud2& msg, const uint8_t* points, InputCloud& cloud) {
   cloud.header = pcl_conversions::toPCL(msg.header);
   cloud.width = msg.width;
   cloud.height = msg.height;
@@ -170,7 +203,7 @@ void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud) {
   if (rgb && rgb->offset + 4 > msg.point_step) rgb = nullptr;
   size_t i = 0;
   for (uint32_t row = 0; row < msg.height; ++row) {
-    const uint8_t* point = msg.data.data() + static_cast<size_t>(row) * msg.row_step;
+    const uint8_t* point = points + static_cast<size_t>(row) * msg.row_step;
     for (uint32_t column = 0; column < msg.width; ++column, ++i, point += msg.point_step) {
       pcl::PointXYZRGB& p = cloud.points[i];
       std::memcpy(&p.x, point + offset_x, 4);

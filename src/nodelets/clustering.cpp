@@ -82,6 +82,9 @@ class ClusteringNodelet : public nodelet::Nodelet {
     auto labeled = boost::make_shared<LabeledCloud>();
     labeled->header = cloud->header;
     labeled->header.seq = ++published_;
+    size_t points = 0;
+    for (const CloudPtr& cluster : clusters) points += cluster->size();
+    labeled->reserve(points);
     for (size_t label = 0; label < clusters.size(); ++label) {
       for (const Point& p : clusters[label]->points) {
         pcl::PointXYZL point;

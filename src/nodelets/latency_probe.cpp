@@ -2,14 +2,18 @@
 // the chain it measures, it subscribes to the chain's topics with their own types (so clouds
 // reach it by pointer, without a copy or serialisation that would slow the chain down) and
 // writes one CSV line per message: topic, the message's stamp and the wall time it arrived, both
-// in microseconds. The feeder stamps each cloud with the wall time it publishes it, so arrival
-// minus stamp is the latency from the input to that stage's output.
+// in microseconds, and its size (points of a cloud, fitted objects of an Objects message, hull
+// points of a Table). The feeder (or the camera driver) stamps each cloud with the wall time it
+// publishes (captures) it, so arrival minus stamp is the latency from the input to that stage's
+// output.
 // Parameters: ~output (CSV path), ~topics (comma-separated "name:type", type one of xyz, xyzl,
-//   table, objects, pc2; names resolved in the nodelet's namespace).
+//   xyzrgb, table, objects, pc2; names resolved in the nodelet's namespace).
 #include "tabletop_shapes/Objects.h"
 #include "tabletop_shapes/Table.h"
 
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
+#include <ros/spinner.h>
 #include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -17,6 +21,7 @@
 
 #include <cinttypes>
 #include <cstdio>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -27,12 +32,19 @@ namespace tabletop_shapes {
 class LatencyProbeNodelet : public nodelet::Nodelet {
  public:
   ~LatencyProbeNodelet() override {
+    subscribers_.clear();
+    if (spinner_) spinner_->stop();
     if (file_) std::fclose(file_);
   }
 
  private:
   void onInit() override {
-    ros::NodeHandle& node = getNodeHandle();
+    // A queue and a thread of its own: the manager's workers are busy with the chain, and a
+    // message waiting for one of them would be logged late (a latency the chain did not have)
+    // and, for the camera's 10 MB clouds, held in memory meanwhile.
+    ros::NodeHandle node(getNodeHandle());
+    node.setCallbackQueue(&queue_);
+    spinner_ = std::make_unique<ros::AsyncSpinner>(1, &queue_);
     ros::NodeHandle& private_node = getPrivateNodeHandle();
     const std::string output = private_node.param<std::string>("output", "latency.csv");
     file_ = std::fopen(output.c_str(), "w");
@@ -40,7 +52,7 @@ class LatencyProbeNodelet : public nodelet::Nodelet {
       NODELET_ERROR("cannot write %s", output.c_str());
       return;
     }
-    std::fprintf(file_, "topic,stamp_us,arrival_us\n");
+    std::fprintf(file_, "topic,stamp_us,arrival_us,size\n");
     std::fflush(file_);
     // One string: a list on the `nodelet load` command line does not reach the nodelet.
     std::vector<std::string> topics;
@@ -52,41 +64,55 @@ class LatencyProbeNodelet : public nodelet::Nodelet {
       const size_t colon = entry.rfind(':');
       const std::string name = entry.substr(0, colon);
       const std::string type = colon == std::string::npos ? "" : entry.substr(colon + 1);
+      const auto pcl_stamp = [](const auto& m) { return pcl_conversions::fromPCL(m.header).stamp; };
+      const auto pcl_size = [](const auto& m) { return m.size(); };
+      const auto msg_stamp = [](const auto& m) { return m.header.stamp; };
       if (type == "xyz") {
-        subscribe<pcl::PointCloud<pcl::PointXYZ>>(
-            node, name, [](const auto& m) { return pcl_conversions::fromPCL(m.header).stamp; });
+        subscribe<pcl::PointCloud<pcl::PointXYZ>>(node, name, pcl_stamp, pcl_size);
       } else if (type == "xyzl") {
-        subscribe<pcl::PointCloud<pcl::PointXYZL>>(
-            node, name, [](const auto& m) { return pcl_conversions::fromPCL(m.header).stamp; });
+        subscribe<pcl::PointCloud<pcl::PointXYZL>>(node, name, pcl_stamp, pcl_size);
+      } else if (type == "xyzrgb") {
+        subscribe<pcl::PointCloud<pcl::PointXYZRGB>>(node, name, pcl_stamp, pcl_size);
       } else if (type == "table") {
-        subscribe<Table>(node, name, [](const auto& m) { return m.header.stamp; });
+        subscribe<Table>(node, name, msg_stamp,
+                         [](const Table& m) { return m.hull.points.size(); });
       } else if (type == "objects") {
-        subscribe<Objects>(node, name, [](const auto& m) { return m.header.stamp; });
+        subscribe<Objects>(node, name, msg_stamp, [](const Objects& m) {
+          return m.cubes.size() + m.cylinders.size() + m.cones.size();
+        });
       } else if (type == "pc2") {
-        subscribe<sensor_msgs::PointCloud2>(node, name,
-                                            [](const auto& m) { return m.header.stamp; });
+        subscribe<sensor_msgs::PointCloud2>(node, name, msg_stamp,
+                                            [](const sensor_msgs::PointCloud2& m) {
+                                              return static_cast<size_t>(m.width) * m.height;
+                                            });
       } else {
         NODELET_ERROR(
-            "topic entry '%s': expected name:type with type xyz, xyzl, table, "
+            "topic entry '%s': expected name:type with type xyz, xyzl, xyzrgb, table, "
             "objects or pc2",
             entry.c_str());
       }
     }
+    spinner_->start();
   }
 
-  template <typename Message, typename StampOf>
-  void subscribe(ros::NodeHandle& node, const std::string& name, StampOf stamp_of) {
+  template <typename Message, typename StampOf, typename SizeOf>
+  void subscribe(ros::NodeHandle& node, const std::string& name, StampOf stamp_of, SizeOf size_of) {
     const std::string resolved = node.resolveName(name);
     subscribers_.push_back(node.subscribe<Message>(
-        name, 50, [this, resolved, stamp_of](const boost::shared_ptr<const Message>& message) {
+        name, 50,
+        [this, resolved, stamp_of, size_of](const boost::shared_ptr<const Message>& message) {
           const int64_t arrival = ros::WallTime::now().toNSec() / 1000;
           const int64_t stamp = stamp_of(*message).toNSec() / 1000;
+          const size_t size = size_of(*message);
           std::lock_guard<std::mutex> lock(mutex_);
-          std::fprintf(file_, "%s,%" PRId64 ",%" PRId64 "\n", resolved.c_str(), stamp, arrival);
+          std::fprintf(file_, "%s,%" PRId64 ",%" PRId64 ",%zu\n", resolved.c_str(), stamp, arrival,
+                       size);
           std::fflush(file_);  // the manager may be killed at the end of a run
         }));
   }
 
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
   FILE* file_ = nullptr;
   std::mutex mutex_;
   std::vector<ros::Subscriber> subscribers_;

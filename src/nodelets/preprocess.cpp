@@ -106,7 +106,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
     }
     output->header.seq = ++published_;
     // The view first: it reaches ShapeEstimation before the frame's clusters do.
-    view_publisher_.publish(bridge::toViewMsg(view, pcl_conversions::fromPCL(output->header)));
+    view_publisher_.publish(boost::shared_ptr<const View>(boost::make_shared<View>(
+        bridge::toViewMsg(view, pcl_conversions::fromPCL(output->header)))));
     boost::shared_ptr<const Cloud> shared = output;
     bridge::markPublished(shared);
     publisher_.publish(shared);

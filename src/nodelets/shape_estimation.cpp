@@ -119,7 +119,10 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(params_mutex_);
       estimator_.setParams(params_);
     }
-    Objects objects;
+    // Shared from the start: published by pointer, a consumer in the same manager takes it
+    // without serialisation or copy.
+    const boost::shared_ptr<Objects> shared = boost::make_shared<Objects>();
+    Objects& objects = *shared;
     objects.header = pcl_conversions::fromPCL(clusters->header);
     objects.table = *table;
     objects.table_found = bridge::tableFound(*table);
@@ -163,28 +166,37 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
         return;
       }
     }
-    publish(objects);
+    publish(shared);
     monitor_->frameDone(stopwatch.milliseconds(), clusters->size(),
                         objects.cubes.size() + objects.cylinders.size() + objects.cones.size());
   }
 
   static std::vector<CloudPtr> splitClusters(const LabeledCloud& labeled) {
-    std::vector<CloudPtr> clusters;
+    // Sizes first: each cluster's points are copied once, into a buffer of the right size.
+    std::vector<size_t> sizes;
     for (const pcl::PointXYZL& p : labeled.points) {
       if (p.label >= labeled.size()) continue;  // not from Clustering: labels are 0..n-1
-      while (clusters.size() <= p.label) {
-        clusters.push_back(std::make_shared<Cloud>());
-        clusters.back()->header = labeled.header;
-      }
-      clusters[p.label]->push_back(Point(p.x, p.y, p.z));
+      if (sizes.size() <= p.label) sizes.resize(p.label + 1, 0);
+      ++sizes[p.label];
+    }
+    std::vector<CloudPtr> clusters(sizes.size());
+    for (size_t label = 0; label < sizes.size(); ++label) {
+      clusters[label] = std::make_shared<Cloud>();
+      clusters[label]->header = labeled.header;
+      clusters[label]->reserve(sizes[label]);
+    }
+    for (const pcl::PointXYZL& p : labeled.points) {
+      if (p.label < sizes.size()) clusters[p.label]->push_back(Point(p.x, p.y, p.z));
     }
     return clusters;
   }
 
-  void publish(const Objects& objects) {
+  // `shared` is not changed after this.
+  void publish(const boost::shared_ptr<const Objects>& shared) {
+    const Objects& objects = *shared;
     visualization_msgs::MarkerArray markers;
     marker_count_ = bridge::buildMarkers(objects, marker_count_, markers);
-    objects_publisher_.publish(objects);
+    objects_publisher_.publish(shared);
     markers_publisher_.publish(markers);
     if (cubes_publisher_.getNumSubscribers() > 0) {
       for (const Cube& cube : objects.cubes) cubes_publisher_.publish(cube);

@@ -178,12 +178,12 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     // The core takes std::shared_ptr: share the received cloud, no copy.
     const CloudConstPtr input = pcl::pcl_ptr(cloud);
     TableResult result;
-    if (up_frame_.empty() && up_.automatic) {
+    const bool up_given = !(up_frame_.empty() && up_.automatic);
+    if (!up_given) {
       up_estimate_.segment(input, params, result);
     } else {
       if (!lookUpDirection(input, params)) return;
       result = TableSegmenter(params).segment(input);
-      checkUp(input, params, result);
     }
     if (!result.found) {
       monitor_->frameWithoutResult(
@@ -202,10 +202,15 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       inliers->header = cloud->header;
       publishCloud(inliers_publisher_, inliers);
     }
-    table_publisher_.publish(
+    // By pointer: Clustering and ShapeEstimation in the same manager take it without a copy.
+    const boost::shared_ptr<const Table> table = boost::make_shared<Table>(
         bridge::toTableMsg(result, params.hull_margin, input->sensor_origin_.head<3>(), header));
+    table_publisher_.publish(table);
     publishCloud(objects_publisher_, objects);
     monitor_->frameDone(stopwatch.milliseconds(), cloud->size(), objects->size());
+    // After the frame's outputs: the check is a plane search of its own (once a second), which
+    // the next stages need not wait for.
+    if (up_given) checkUp(input, params, result);
   }
 
   // A given up (parameter or tf) against the scene's, at most once a second: it costs a plane

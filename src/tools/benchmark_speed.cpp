@@ -1,7 +1,8 @@
 // benchmark_speed: the core pipeline alone (no ROS) timed per stage on rendered scenes with 1,
 // 4, 16 and 32 objects at three resolutions and on the real OSD scenes; prints median / p90 /
 // p99 per stage, CPU time per frame, and a scaling table, and writes a gnuplot PNG of the time
-// against points and against objects. `scripts/benchmark_speed` adds the ROS chain to it.
+// against points and against objects; the main table goes to OUT/speed_core.csv as well, for
+// `scripts/benchmark_speed`, which adds the ROS chain and its overhead over the core to it.
 //   benchmark_speed [--quick] [--frames N] [--osd DIR] [--out DIR] [--no-plots]
 //   benchmark_speed --write-scene OBJECTS PREFIX
 #include "tabletop_shapes/core/pipeline.h"
@@ -40,7 +41,7 @@ struct Options {
 
 // One timed configuration: frames of the same scene (or scenes), run back to back.
 struct Series {
-  std::string name;
+  std::string key, name;  // key: how scripts/benchmark_speed finds the ROS run of this scene
   std::vector<double> preprocess, table, clustering, shapes, total, cpu;
   double points = 0, objects = 0;  // per frame, mean
 };
@@ -64,11 +65,12 @@ size_t validPoints(const pcl::PointCloud<pcl::PointXYZ>& cloud) {
 }
 
 // Runs `frames` frames cycling over `clouds` (each with its own up, or auto up when empty).
-Series timeClouds(const std::string& name,
+Series timeClouds(const std::string& key, const std::string& name,
                   const std::vector<pcl::PointCloud<pcl::PointXYZ>>& clouds,
                   const std::vector<Eigen::Vector3f>& ups, int frames,
                   const std::function<void()>& tick) {
   Series series;
+  series.key = key;
   series.name = name;
   // One pipeline per cloud, as each cloud stands for a camera stream of its own (an estimated
   // up is held between the frames of a stream), then one untimed frame per cloud: buffers
@@ -117,21 +119,40 @@ std::vector<pcl::PointCloud<pcl::PointXYZ>> renderClouds(int objects, int width,
 
 void printStageTable(const std::vector<Series>& all) {
   std::printf("\nCore pipeline alone (no ROS), one thread calling it; ms per frame\n");
-  std::printf("  %-22s %7s %5s  %-17s %-17s %-17s %-17s %-20s %7s\n", "scene", "points", "objs",
-              "preprocess", "table", "clustering", "shapes", "total med/p90/p99", "CPU ms");
+  std::printf("  %-22s %7s %5s  %-17s %-17s %-17s %-17s %-17s %7s\n", "scene", "points", "objs",
+              "preprocess", "table", "clustering", "shapes", "total", "CPU ms");
   auto stage = [](const std::vector<double>& v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%5.1f/%5.1f", quantile(v, 0.5), quantile(v, 0.9));
+    char text[48];
+    std::snprintf(text, sizeof text, "%5.1f/%5.1f/%5.1f", quantile(v, 0.5), quantile(v, 0.9),
+                  quantile(v, 0.99));
     return std::string(text);
   };
   for (const Series& s : all) {
-    std::printf("  %-22s %7.0f %5.1f  %-17s %-17s %-17s %-17s %5.1f/%5.1f/%5.1f    %7.1f\n",
-                s.name.c_str(), s.points, s.objects, stage(s.preprocess).c_str(),
-                stage(s.table).c_str(), stage(s.clustering).c_str(), stage(s.shapes).c_str(),
-                quantile(s.total, 0.5), quantile(s.total, 0.9), quantile(s.total, 0.99),
+    std::printf("  %-22s %7.0f %5.1f  %-17s %-17s %-17s %-17s %-17s %7.1f\n", s.name.c_str(),
+                s.points, s.objects, stage(s.preprocess).c_str(), stage(s.table).c_str(),
+                stage(s.clustering).c_str(), stage(s.shapes).c_str(), stage(s.total).c_str(),
                 quantile(s.cpu, 0.5));
   }
-  std::printf("  (stages: median/p90; CPU ms: median process CPU time per frame, all threads)\n");
+  std::printf(
+      "  (each stage and the total: median/p90/p99 ms; CPU ms: median process CPU time per frame,"
+      " all threads)\n");
+}
+
+// The main table's medians for scripts/benchmark_speed (the ROS chain's overhead over the core).
+void writeCoreCsv(const std::vector<Series>& all, const std::string& path) {
+  FILE* file = std::fopen(path.c_str(), "w");
+  if (!file) {
+    std::fprintf(stderr, "benchmark_speed: cannot write %s\n", path.c_str());
+    return;
+  }
+  std::fprintf(file, "key,preprocess,table,clustering,shapes,total,total_p90,total_p99,cpu\n");
+  for (const Series& s : all) {
+    std::fprintf(file, "%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", s.key.c_str(),
+                 quantile(s.preprocess, 0.5), quantile(s.table, 0.5), quantile(s.clustering, 0.5),
+                 quantile(s.shapes, 0.5), quantile(s.total, 0.5), quantile(s.total, 0.9),
+                 quantile(s.total, 0.99), quantile(s.cpu, 0.5));
+  }
+  std::fclose(file);
 }
 
 struct ScalingRow {
@@ -265,7 +286,8 @@ int main(int argc, char** argv) {
     current = "VGA " + std::to_string(config.objects) + " objects";
     const auto clouds =
         renderClouds(config.objects, config.width, config.height, options.renders, ups);
-    series.push_back(timeClouds(current, clouds, ups, options.frames, tick));
+    series.push_back(timeClouds("vga" + std::to_string(config.objects), current, clouds, ups,
+                                options.frames, tick));
   }
   if (!osd_files.empty()) {
     current = "OSD learn (" + std::to_string(osd_files.size()) + " scenes)";
@@ -274,7 +296,9 @@ int main(int argc, char** argv) {
       pcl::PointCloud<pcl::PointXYZ> cloud;
       if (pcl::io::loadPCDFile(file.string(), cloud) >= 0) clouds.push_back(std::move(cloud));
     }
-    if (!clouds.empty()) series.push_back(timeClouds(current, clouds, {}, options.frames, tick));
+    if (!clouds.empty()) {
+      series.push_back(timeClouds("osd", current, clouds, {}, options.frames, tick));
+    }
   }
   std::vector<ScalingRow> rows;
   for (const Config& config : scaling_configs) {
@@ -283,11 +307,12 @@ int main(int argc, char** argv) {
     const auto clouds =
         renderClouds(config.objects, config.width, config.height, options.renders, ups);
     rows.push_back({config.width, config.height, config.objects,
-                    timeClouds(current, clouds, ups, options.scaling_frames, tick)});
+                    timeClouds("", current, clouds, ups, options.scaling_frames, tick)});
   }
   std::fprintf(stderr, "\n");
 
   printStageTable(series);
+  writeCoreCsv(series, options.out_dir + "/speed_core.csv");
   std::printf("\nScaling (core alone, median / p90 ms per frame, %d frames each)\n",
               options.scaling_frames);
   std::printf("  %-10s %7s %9s %8s %8s %8s\n", "image", "objects", "points", "found", "median",

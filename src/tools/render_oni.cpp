@@ -7,6 +7,7 @@
 #include "tabletop_shapes/sim/oni_writer.h"
 #include "tabletop_shapes/sim/scene_options.h"
 #include "tabletop_shapes/sim/scene_renderer.h"
+#include "tabletop_shapes/sim/speed_scenes.h"
 
 #include <cmath>
 #include <cstdio>
@@ -20,7 +21,8 @@
 namespace {
 
 const char* kUsage =
-    "usage: render_oni [--paper | --objects K | --everyday] [--sensor kinect|realsense]"
+    "usage: render_oni [--paper | --objects K | --everyday | --speed-scene K]"
+    " [--sensor kinect|realsense]"
     " [--seed N] [--frames N] [--repeat] [--qvga]"
     " [--noiseless] [--no-color] [--distance M] [--tilt DEG] [--yaw DEG] [--fps N]"
     " [--truncate BYTES] [--json] --out FILE.oni";
@@ -36,6 +38,7 @@ int main(int argc, char** argv) {
   namespace sim = tabletop_shapes::sim;
   sim::SceneChoice choice;
   double frames = 1, fps = 30, truncate = -1;
+  double speed_objects = 0;  // --speed-scene: make benchmark-speed's grid of K objects
   bool repeat = false, qvga = false, color = true, json = false;
   std::string path, usage_error;
   for (int i = 1; i < argc; ++i) {
@@ -47,7 +50,9 @@ int main(int argc, char** argv) {
       return i + 1 < argc && sim::parseNumber(argv[++i], value) && value >= lo && value <= hi &&
              value == std::floor(value);
     };
-    if (arg == "--repeat") {
+    if (arg == "--speed-scene") {
+      if (!number(speed_objects, 1, 32)) return usageError("--speed-scene needs 1..32 objects");
+    } else if (arg == "--repeat") {
       repeat = true;
     } else if (arg == "--qvga") {
       qvga = true;
@@ -70,8 +75,15 @@ int main(int argc, char** argv) {
   }
   if (path.empty()) return usageError("--out FILE.oni is required");
   usage_error = sim::sceneChoiceError(choice);
+  if (speed_objects > 0 && (choice.paper || choice.everyday || choice.objects > 0)) {
+    usage_error = "--speed-scene excludes --paper, --everyday and --objects";
+  }
   if (!usage_error.empty()) return usageError(usage_error);
-  sim::SceneSpec spec = sim::sceneSpecFrom(choice);
+  // The speed scene is the one speed_feed publishes as PointCloud2, so that both feeds of the
+  // benchmark show the same frames (noise seeds 1, 2, ... as speed_feed's renders).
+  sim::SceneSpec spec = speed_objects > 0
+                            ? sim::speedScene(static_cast<int>(speed_objects), 640, 480, 1)
+                            : sim::sceneSpecFrom(choice);
   if (qvga) {  // the same field of view at half the resolution
     sim::CameraIntrinsics& camera = spec.camera;
     camera.width /= 2;

@@ -136,6 +136,35 @@ TEST(CloudInput, DeserializesWhatRoscppSerializes) {
   EXPECT_EQ(read.fields.size(), 3u);
 }
 
+// The subscriber's path: the points are read where roscpp received them, with the same
+// checks and the same cloud as through a PointCloud2 copy.
+TEST(CloudInput, PointsAreReadInPlaceFromTheReceivedBytes) {
+  sensor_msgs::PointCloud2 msg = xyzCloud(6, 4);
+  msg.header.frame_id = "camera";
+  const std::vector<uint8_t> bytes = serialize(msg);
+  sensor_msgs::PointCloud2 layout;
+  const uint8_t* points = nullptr;
+  size_t point_bytes = 0;
+  ASSERT_EQ(bridge::deserializeCloudLayout(bytes.data(), bytes.size(), layout, points, point_bytes),
+            "");
+  EXPECT_TRUE(layout.data.empty());
+  EXPECT_EQ(point_bytes, 6u * 4u * 16u);
+  // The data ends one byte (is_dense) before the message.
+  EXPECT_EQ(points + point_bytes, bytes.data() + bytes.size() - 1);
+  ASSERT_EQ(invalidCloudReason(layout, point_bytes, kCap), "");
+  EXPECT_EQ(invalidCloudReason(layout, point_bytes - 16, kCap),
+            "data shorter than declared: 368 bytes, row_step 96 x height 4 = 384");
+  bridge::InputCloud in_place, copied;
+  bridge::readInputCloud(layout, points, in_place);
+  bridge::readInputCloud(msg, copied);
+  ASSERT_EQ(in_place.size(), 24u);
+  EXPECT_EQ(in_place.header.frame_id, "camera");
+  for (size_t i = 0; i < in_place.size(); ++i) {
+    EXPECT_EQ(in_place.points[i].getVector3fMap(), copied.points[i].getVector3fMap()) << i;
+  }
+  EXPECT_FLOAT_EQ(in_place.points[23].z, 1.023f);
+}
+
 // roscpp's own deserializer resizes to the claimed length before it checks the bytes: a few
 // bytes claiming 4 GB of data are refused here without allocating.
 TEST(CloudInput, ClaimedLengthsBeyondTheMessageAreRefused) {

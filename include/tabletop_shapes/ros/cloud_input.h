@@ -34,6 +34,16 @@ std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max
 // x y z (and rgb when the message has it) of a valid `msg`; layout and header kept.
 void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud);
 
+// The same three steps without copying the point bytes into msg.data (a VGA XYZRGB cloud is
+// ~10 MB, and the subscriber reads it straight from roscpp's receive buffer): `msg` gets every
+// field but data, `points` / `point_bytes` locate the data inside `data`.
+std::string deserializeCloudLayout(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg,
+                                   const uint8_t*& points, size_t& point_bytes);
+std::string invalidCloudReason(const sensor_msgs::PointCloud2& layout, size_t point_bytes,
+                               uint64_t max_points);
+void readInputCloud(const sensor_msgs::PointCloud2& layout, const uint8_t* points,
+                    InputCloud& cloud);
+
 // The header of a refused cloud (default-constructed when even it was unreadable), and why.
 using InvalidCloudCallback = std::function<void(const std_msgs::Header&, const std::string&)>;
 
