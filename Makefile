@@ -62,8 +62,6 @@ SANITIZE_DIR ?= .build-sanitize
 # were freed by the other allocator. ASan's malloc is 16-byte aligned too: keep Eigen's choice.
 SANITIZE_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 SANITIZE_CXX_FLAGS := $(SANITIZE_FLAGS) -DEIGEN_MALLOC_ALREADY_ALIGNED=1
-SANITIZE_TESTS := $(sort $(basename $(notdir $(wildcard test/core/test_*.cpp)))) test_messages
-FUZZ_TARGETS_ALL := fuzz_pcd_reader fuzz_pipeline fuzz_oni_recording fuzz_cloud_input
 export ASAN_OPTIONS ?= detect_leaks=1:abort_on_error=1:strict_string_checks=1
 export UBSAN_OPTIONS ?= print_stacktrace=1:halt_on_error=1
 export LSAN_OPTIONS ?= suppressions=$(CURDIR)/scripts/lsan-suppressions.txt
@@ -73,10 +71,8 @@ test-sanitize: deps
 	cmake -S . -B $(SANITIZE_DIR) $(CMAKE_ARGS) \
 	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$(SANITIZE_CXX_FLAGS)" \
 	  -DCMAKE_EXE_LINKER_FLAGS="$(SANITIZE_FLAGS)" -DCMAKE_SHARED_LINKER_FLAGS="$(SANITIZE_FLAGS)" >/dev/null
-	cmake --build $(SANITIZE_DIR) --target estimate_shapes $(SANITIZE_TESTS) \
-	  $(addprefix replay_,$(FUZZ_TARGETS_ALL)) -- -j$(JOBS)
-	cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) \
-	  -R '_gtest_($(subst $() $(),|,$(SANITIZE_TESTS)))$$|^test_estimate_shapes$$|_corpus$$'
+	cmake --build $(SANITIZE_DIR) --target sanitize_tests -- -j$(JOBS)
+	cd $(SANITIZE_DIR) && ctest --output-on-failure -j$(JOBS) -L sanitize
 
 # libFuzzer targets (test/fuzz) with Debian's clang, ASan and UBSan, in FUZZ_DIR; each runs
 # FUZZ_SECONDS from the committed seed corpus. clang comes from a list of its own, so that

@@ -14,11 +14,13 @@
 //   cubes / cylinders / cones (tabletop_shapes/Cube, Cylinder, Cone): one message per object,
 //     only while someone subscribes
 // Parameters: cfg/ShapeEstimation.cfg (dynamic_reconfigure);
-//   ~output_frame (string, "": the cloud's frame): results transformed with tf2; a missing
-//     transform skips the frame with a throttled warning
+//   ~output_frame (string, "": the cloud's frame): results transformed with tf2 at the frame's
+//     own stamp; a missing transform skips the frame with a throttled warning; stamps going
+//     back (a looped bag) are warned about (ros/frame_transforms.h)
 //   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
 #include "tabletop_shapes/core/object_fitting.h"
 #include "tabletop_shapes/ros/conversions.h"
+#include "tabletop_shapes/ros/frame_transforms.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/ShapeEstimationConfig.h"
@@ -30,8 +32,6 @@
 #include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_listener.h>
 
 #include <deque>
 #include <memory>
@@ -54,10 +54,10 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     bridge::seedCoreDefaults(private_node, stages);
     monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     output_frame_ = private_node.param<std::string>("output_frame", "");
-    tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
     if (!output_frame_.empty()) {
-      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
-      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
+      transforms_ = std::make_unique<bridge::FrameTransforms>(
+          ros::Duration(private_node.param("tf_timeout", 0.1)), bridge::warnThrough(*monitor_));
+      transforms_->listen(node);
     }
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ShapeEstimationConfig>>(
         reconfigure_mutex_, private_node);
@@ -147,15 +147,9 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     }
     if (!output_frame_.empty() && output_frame_ != objects.header.frame_id) {
       try {
-        const geometry_msgs::TransformStamped transform = tf_buffer_->lookupTransform(
-            output_frame_, objects.header.frame_id, objects.header.stamp, tf_timeout_);
-        const auto& t = transform.transform.translation;
-        const auto& q = transform.transform.rotation;
-        Eigen::Isometry3d target_from_source = Eigen::Isometry3d::Identity();
-        target_from_source.translation() = Eigen::Vector3d(t.x, t.y, t.z);
-        target_from_source.linear() =
-            Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
-        bridge::transformObjects(target_from_source, output_frame_, objects);
+        bridge::transformObjects(
+            transforms_->lookup(output_frame_, objects.header.frame_id, objects.header.stamp),
+            output_frame_, objects);
       } catch (const tf2::TransformException& error) {
         const std::string reason = "no transform to output_frame '" + output_frame_ + "' from '" +
                                    objects.header.frame_id + "': " + error.what();
@@ -217,9 +211,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
   std::deque<ViewConstPtr> views_;
   ros::Subscriber view_subscriber_;
   std::string output_frame_;
-  ros::Duration tf_timeout_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<bridge::FrameTransforms> transforms_;  // with output_frame only
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<ShapeEstimationConfig>> reconfigure_;
   std::mutex params_mutex_;

@@ -12,7 +12,8 @@
 // frames it drops.
 // Parameters: cfg/TableSegmentation.cfg (dynamic_reconfigure), and "up" (at most one of):
 //   ~up_frame (string, ""): a frame whose +z is up (e.g. base_link), looked up with tf2 at the
-//     cloud's stamp; a missing transform skips the frame with a throttled warning
+//     cloud's own stamp; a missing transform skips the frame with a throttled warning; stamps
+//     going back (a looped bag) are warned about (ros/frame_transforms.h)
 //   ~up (string "auto", "X,Y,Z" or "[x, y, z]", or a list of 3 numbers; default auto): up in
 //     the cloud frame, or auto: estimated from the scene in every frame
 //   ~auto_up (bool, false): the older spelling of up: auto
@@ -24,6 +25,7 @@
 #include "tabletop_shapes/core/table_segmentation.h"
 #include "tabletop_shapes/core/up_direction.h"
 #include "tabletop_shapes/ros/conversions.h"
+#include "tabletop_shapes/ros/frame_transforms.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/TableSegmentationConfig.h"
@@ -33,8 +35,6 @@
 #include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_listener.h>
 
 #include <memory>
 #include <mutex>
@@ -53,7 +53,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     // subscriber then crashes the process before the refusal is printed.
     bridge::seedCoreDefaults(private_node, {"table"});
     up_frame_ = private_node.param<std::string>("up_frame", "");
-    tf_timeout_ = ros::Duration(private_node.param("tf_timeout", 0.1));
+    const ros::Duration tf_timeout(private_node.param("tf_timeout", 0.1));
     try {
       up_ = readUpSetting(private_node);
     } catch (const std::invalid_argument& error) {
@@ -67,8 +67,9 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
                                                      : formatUp(up_.vector) + " in the cloud frame";
     NODELET_INFO("up: %s", up_source.c_str());
     if (!up_frame_.empty()) {
-      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
-      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, node);
+      transforms_ =
+          std::make_unique<bridge::FrameTransforms>(tf_timeout, bridge::warnThrough(*monitor_));
+      transforms_->listen(node);
     }
 
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<TableSegmentationConfig>>(
@@ -150,10 +151,9 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     }
     const std_msgs::Header header = pcl_conversions::fromPCL(cloud->header);
     try {
-      const geometry_msgs::TransformStamped transform =
-          tf_buffer_->lookupTransform(header.frame_id, up_frame_, header.stamp, tf_timeout_);
-      const auto& q = transform.transform.rotation;
-      params.up = (Eigen::Quaternionf(q.w, q.x, q.y, q.z).normalized() * Eigen::Vector3f::UnitZ());
+      const Eigen::Isometry3d cloud_from_up =
+          transforms_->lookup(header.frame_id, up_frame_, header.stamp);
+      params.up = (cloud_from_up.linear() * Eigen::Vector3d::UnitZ()).cast<float>();
       return true;
     } catch (const tf2::TransformException& error) {
       const std::string reason = "no transform from up_frame '" + up_frame_ + "' to '" +
@@ -234,9 +234,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
   UpSetting up_;            // used when up_frame_ is empty
   UpEstimate up_estimate_;  // up: auto, held between frames
   ros::WallTime next_up_check_;
-  ros::Duration tf_timeout_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<bridge::FrameTransforms> transforms_;  // with up_frame only
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<TableSegmentationConfig>> reconfigure_;
   std::mutex params_mutex_;

@@ -6,9 +6,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <unistd.h>
 
 namespace tabletop_shapes {
 namespace testing_support {
@@ -31,6 +33,22 @@ inline std::string writeSmallRecording(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
 }
+
+// The recording in a file of the test's own (/tmp/<name>_<pid>.oni), removed at the end.
+class SmallRecordingFile {
+ public:
+  explicit SmallRecordingFile(const std::string& name)
+      : path("/tmp/" + name + "_" + std::to_string(getpid()) + ".oni"),
+        bytes(writeSmallRecording(path)) {}
+  ~SmallRecordingFile() { std::remove(path.c_str()); }
+  // Replaces the file's content, as a disk, a copy or a user would.
+  void write(const std::string& content) const {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << content;
+  }
+
+  const std::string path;
+  const std::string bytes;  // as first written
+};
 
 }  // namespace testing_support
 }  // namespace tabletop_shapes

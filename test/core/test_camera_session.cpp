@@ -233,14 +233,7 @@ TEST_F(CameraSessionTest, StreamsRunOnlyWhileSomeoneWantsThem) {
 // recording damaged under the player is named when the silent player is closed.
 class RecordingSessionTest : public CameraSessionTest {
  protected:
-  void SetUp() override {
-    bytes_ = testing_support::writeSmallRecording(path_);
-    ASSERT_GT(bytes_.size(), 3000u);
-  }
-  void TearDown() override { std::remove(path_.c_str()); }
-  void write(const std::string& bytes) {
-    std::ofstream(path_, std::ios::binary | std::ios::trunc) << bytes;
-  }
+  void SetUp() override { ASSERT_GT(bytes_.size(), 3000u); }
   // Plays, then the file changes and the player falls silent; returns the problem logged when
   // the session tries to reopen it, and checks that it recovers once the file is whole again.
   std::string problemAfter(const std::function<void()>& damage) {
@@ -253,15 +246,16 @@ class RecordingSessionTest : public CameraSessionTest {
     EXPECT_EQ(step(*session).kind, CameraSession::Step::kRetry);
     EXPECT_EQ(state_.opens, 1);  // the damaged file never reaches the player
     const std::vector<std::string> problems = errors();
-    write(bytes_);
+    recording_.write(bytes_);
     state_.frames_left = -1;
     EXPECT_EQ(step(*session).kind, CameraSession::Step::kFrame);
     EXPECT_EQ(state_.opens, 2);
     return problems.size() == 1 ? problems[0] : "problems: " + std::to_string(problems.size());
   }
 
-  std::string path_ = "/tmp/test_camera_session_" + std::to_string(getpid()) + ".oni";
-  std::string bytes_;
+  testing_support::SmallRecordingFile recording_{"test_camera_session"};
+  const std::string& path_ = recording_.path;
+  const std::string& bytes_ = recording_.bytes;
 };
 
 TEST_F(RecordingSessionTest, ADeletedRecordingIsNamedAndPlaysAgainWhenBack) {
@@ -272,19 +266,19 @@ TEST_F(RecordingSessionTest, ADeletedRecordingIsNamedAndPlaysAgainWhenBack) {
 TEST_F(RecordingSessionTest, ATruncatedRecordingSaysWhereItEnds) {
   EXPECT_EQ(
       problemAfter([this] {
-        write(bytes_.substr(0, 3000));
+        recording_.write(bytes_.substr(0, 3000));
       }).rfind("recording " + path_ + " is truncated: it ends at byte 3000 inside record ", 0),
       0u);
 }
 
 TEST_F(RecordingSessionTest, ARecordingReplacedByAnotherFileIsNotAnOni) {
-  EXPECT_EQ(problemAfter([this] { write("P6\n32 24\n255\n" + std::string(2304, 'x')); }),
+  EXPECT_EQ(problemAfter([this] { recording_.write("P6\n32 24\n255\n" + std::string(2304, 'x')); }),
             "recording " + path_ +
                 " is not an .oni file (2317 bytes, no NI10 header); retrying in 0.5 s");
 }
 
 TEST_F(RecordingSessionTest, AFileThatIsNotAnOniNeverReachesThePlayer) {
-  write("not a recording");
+  recording_.write("not a recording");
   auto session = makeSession(path_);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(step(*session).kind, CameraSession::Step::kRetry);
   EXPECT_EQ(state_.opens, 0);

@@ -19,16 +19,10 @@ namespace {
 
 class OniRecordingTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    bytes_ = testing_support::writeSmallRecording(path_);
-    ASSERT_GT(bytes_.size(), 3000u);
-  }
-  void TearDown() override { std::remove(path_.c_str()); }
-  void write(const std::string& bytes) {
-    std::ofstream(path_, std::ios::binary | std::ios::trunc) << bytes;
-  }
-  std::string path_ = "/tmp/test_oni_recording_" + std::to_string(getpid()) + ".oni";
-  std::string bytes_;
+  void SetUp() override { ASSERT_GT(bytes_.size(), 3000u); }
+  testing_support::SmallRecordingFile recording_{"test_oni_recording"};
+  const std::string& path_ = recording_.path;
+  std::string bytes_ = recording_.bytes;  // a copy the tests damage
 };
 
 TEST_F(OniRecordingTest, AWholeRecordingHasNoProblem) { EXPECT_EQ(oniRecordingProblem(path_), ""); }
@@ -39,7 +33,7 @@ TEST_F(OniRecordingTest, ADeletedRecordingIsNamed) {
 }
 
 TEST_F(OniRecordingTest, ATruncatedRecordingSaysWhereItEnds) {
-  write(bytes_.substr(0, 3000));
+  recording_.write(bytes_.substr(0, 3000));
   const std::string problem = oniRecordingProblem(path_);
   EXPECT_EQ(
       problem.rfind("recording " + path_ + " is truncated: it ends at byte 3000 inside record ", 0),
@@ -49,37 +43,37 @@ TEST_F(OniRecordingTest, ATruncatedRecordingSaysWhereItEnds) {
 
 TEST_F(OniRecordingTest, ARecordingWithoutItsEndRecordIsTruncated) {
   // The last record is END (28 bytes, no payload): a copy stopped just before it.
-  write(bytes_.substr(0, bytes_.size() - 28));
+  recording_.write(bytes_.substr(0, bytes_.size() - 28));
   EXPECT_NE(oniRecordingProblem(path_).find("is truncated"), std::string::npos);
 }
 
 TEST_F(OniRecordingTest, AnOverwrittenRecordIsDamagedAtItsOffset) {
   bytes_.replace(24, 4, "JUNK");  // the first record's magic, right after the 24-byte header
-  write(bytes_);
+  recording_.write(bytes_);
   EXPECT_EQ(oniRecordingProblem(path_),
             "recording " + path_ + " is damaged: no valid record at byte 24");
 }
 
 TEST_F(OniRecordingTest, ARecordingReplacedByAnotherFileIsNotAnOni) {
-  write("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\n");
+  recording_.write("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\n");
   EXPECT_EQ(oniRecordingProblem(path_),
             "recording " + path_ + " is not an .oni file (37 bytes, no NI10 header)");
-  write("");
+  recording_.write("");
   EXPECT_EQ(oniRecordingProblem(path_),
             "recording " + path_ + " is not an .oni file (0 bytes, no NI10 header)");
 }
 
 TEST_F(OniRecordingTest, ARecordingReplacedByAWholeOneIsFineAgain) {
-  write(bytes_.substr(0, 100));
+  recording_.write(bytes_.substr(0, 100));
   EXPECT_NE(oniRecordingProblem(path_), "");
-  write(bytes_);
+  recording_.write(bytes_);
   EXPECT_EQ(oniRecordingProblem(path_), "");
 }
 
 TEST_F(OniRecordingTest, AnUnendingChainOfRecordsIsWalkedInBoundedSteps) {
   // Record headers that claim a header size below 28 bytes would never advance.
   bytes_.replace(24 + 12, 4, std::string("\x04\x00\x00\x00", 4));
-  write(bytes_);
+  recording_.write(bytes_);
   EXPECT_NE(oniRecordingProblem(path_).find("is damaged: no valid record at byte 24"),
             std::string::npos);
 }

@@ -13,6 +13,8 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_msgs/String.h>
 #include <tabletop_shapes/Objects.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_msgs/TFMessage.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
@@ -82,6 +84,22 @@ std::string describe(const Objects& objects) {
   return text.str();
 }
 
+// A stamp in whole microseconds: it survives the PCL header of the later stages unchanged.
+ros::Time wholeMicroseconds(const ros::Time& stamp) {
+  return ros::Time().fromNSec(stamp.toNSec() / 1000 * 1000);
+}
+
+// world -> base_link (a robot's pose in its map) at `stamp`, as one /tf message.
+tf2_msgs::TFMessage worldFromBase(const Eigen::Isometry3d& pose, const ros::Time& stamp) {
+  geometry_msgs::TransformStamped transform = tf2::eigenToTransform(Eigen::Affine3d(pose.matrix()));
+  transform.header.stamp = stamp;
+  transform.header.frame_id = "world";
+  transform.child_frame_id = "base_link";
+  tf2_msgs::TFMessage message;
+  message.transforms.push_back(transform);
+  return message;
+}
+
 // Collects what the pipeline publishes.
 class PipelineTest : public ::testing::Test {
  protected:
@@ -146,6 +164,14 @@ class PipelineTest : public ::testing::Test {
     std::lock_guard<std::mutex> lock(mutex_);
     return objects_.at(index);
   }
+  // The objects message of the frame stamped `stamp` (null while not received).
+  ObjectsConstPtr objectsFor(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const ObjectsConstPtr& objects : objects_) {
+      if (objects->header.stamp == stamp) return objects;
+    }
+    return nullptr;
+  }
   // The ground truth published with the frame stamped `stamp` (null while not received).
   ObjectsConstPtr truthFor(const ros::Time& stamp) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -174,6 +200,52 @@ class PipelineTest : public ::testing::Test {
     return warnings_[stage].empty() ? "(none)" : warnings_[stage].back();
   }
 
+  // For the tests that send the frames themselves: `scene_` is the cloud the fixture bag plays
+  // on /scene/points (a topic the chain does not read), `input_` the chain's input topic.
+  void startFeed() {
+    ros::NodeHandle node;
+    sensor_msgs::PointCloud2ConstPtr scene;
+    ros::Subscriber scene_sub = node.subscribe<sensor_msgs::PointCloud2>(
+        "/scene/points", 1, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
+          std::lock_guard<std::mutex> lock(mutex_);
+          scene = msg;
+        });
+    ASSERT_TRUE(waitFor(
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex_);
+          return scene != nullptr;
+        },
+        privateParam("timeout", 40.0)))
+        << "no scene on /scene/points";
+    scene_ = *scene;
+    input_ = node.advertise<sensor_msgs::PointCloud2>("/camera/depth_registered/points", 100);
+    ASSERT_TRUE(waitFor([&] { return input_.getNumSubscribers() > 0; }, 10.0));
+  }
+  // Sends the scene stamped `stamp` and waits for its objects message: one frame at a time, so
+  // that no queue drops it. Null when none came within `seconds`.
+  ObjectsConstPtr sendFrame(const ros::Time& stamp, double seconds = 30.0) {
+    scene_.header.stamp = stamp;
+    input_.publish(scene_);
+    ObjectsConstPtr answer;
+    waitFor([&] { return (answer = objectsFor(stamp)) != nullptr; }, seconds);
+    return answer;
+  }
+  // A /tf publisher once the manager listens to it (its two listeners, TableSegmentation's
+  // and ShapeEstimation's, share one connection).
+  ros::Publisher tfPublisher() {
+    ros::Publisher tf = ros::NodeHandle().advertise<tf2_msgs::TFMessage>("/tf", 100);
+    EXPECT_TRUE(waitFor([&] { return tf.getNumSubscribers() >= 1; }, 10.0))
+        << "the manager listens to /tf";
+    return tf;
+  }
+  // The objects of one good frame of the scene: a table and every object.
+  void expectObjectsFound(const ObjectsConstPtr& objects) {
+    ASSERT_TRUE(objects) << "no objects message";
+    EXPECT_TRUE(objects->table_found) << objects->reason;
+    EXPECT_EQ(objectCount(*objects), static_cast<size_t>(privateParam("expected_objects", 4)))
+        << describe(*objects);
+  }
+
   bool setMinClusterSize(int size) {
     dynamic_reconfigure::Reconfigure call;
     dynamic_reconfigure::IntParameter parameter;
@@ -194,6 +266,8 @@ class PipelineTest : public ::testing::Test {
   ros::WallTime first_tf_warning_;
   std::string tf_warning_text_;
   std::vector<rosgraph_msgs::LogConstPtr> logs_;
+  sensor_msgs::PointCloud2 scene_;
+  ros::Publisher input_;
   ros::Subscriber objects_sub_, truth_sub_, markers_sub_, diagnostics_sub_, rosout_sub_;
 };
 
@@ -682,9 +756,7 @@ TEST_F(PipelineTest, BadInputIsReportedAndThePipelineKeepsRunning) {
     EXPECT_TRUE(waitFor(
         [&] {
           if (ros::WallTime::now() >= next_send) {
-            // whole microseconds: the stamp survives the PCL header of the later stages
-            cloud.cloud.header.stamp =
-                ros::Time().fromNSec(ros::Time::now().toNSec() / 1000 * 1000);
+            cloud.cloud.header.stamp = wholeMicroseconds(ros::Time::now());
             sent_stamps.insert(cloud.cloud.header.stamp);
             input.publish(cloud.cloud);
             next_send = ros::WallTime::now() + ros::WallDuration(0.5);
@@ -755,23 +827,9 @@ TEST_F(PipelineTest, BadInputIsReportedAndThePipelineKeepsRunning) {
 // frames in = processed + skipped + dropped at preprocess, and every frame preprocess
 // published reaches `objects` unless a later stage counts it as dropped.
 TEST_F(PipelineTest, DroppedFramesAreCounted) {
-  ros::NodeHandle node;
-  sensor_msgs::PointCloud2ConstPtr scene;
-  ros::Subscriber scene_sub = node.subscribe<sensor_msgs::PointCloud2>(
-      "/scene/points", 1, [&](const sensor_msgs::PointCloud2ConstPtr& msg) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        scene = msg;
-      });
-  ASSERT_TRUE(waitFor(
-      [&] {
-        std::lock_guard<std::mutex> lock(mutex_);
-        return scene != nullptr;
-      },
-      privateParam("timeout", 40.0)));
-  ros::Publisher input =
-      node.advertise<sensor_msgs::PointCloud2>("/camera/depth_registered/points", 100);
-  ASSERT_TRUE(waitFor([&] { return input.getNumSubscribers() > 0; }, 10.0));
-  sensor_msgs::PointCloud2 cloud = *scene;
+  ASSERT_NO_FATAL_FAILURE(startFeed());
+  ros::Publisher& input = input_;
+  sensor_msgs::PointCloud2 cloud = scene_;
   // Warm-up: a frame lost before preprocess received its first one is no gap it can see, so
   // the count starts after one frame (numbered 1) went through the whole chain.
   const size_t objects_before = objectsReceived();
@@ -796,7 +854,7 @@ TEST_F(PipelineTest, DroppedFramesAreCounted) {
   ros::WallRate rate(30.0);
   for (int i = 2; i <= sent + 1; ++i) {
     cloud.header.seq = static_cast<uint32_t>(i);
-    cloud.header.stamp = ros::Time().fromNSec(ros::Time::now().toNSec() / 1000 * 1000);
+    cloud.header.stamp = wholeMicroseconds(ros::Time::now());
     input.publish(cloud);
     rate.sleep();
   }
@@ -839,6 +897,131 @@ TEST_F(PipelineTest, DroppedFramesAreCounted) {
       << "30 Hz is faster than the chain: some frames must have been dropped";
   EXPECT_EQ(static_cast<double>(objectsReceived()), processed - dropped_later)
       << "every frame preprocess published reached objects or was counted as dropped";
+}
+
+// TF jumping (issue 16): world -> base_link, a robot's pose, jumps 3 m and 90 deg about up
+// between frames. Each frame's objects, given in world (up_frame and output_frame are world),
+// must lie where the pose of its own stamp puts them: taken back to base_link they are the
+// same in every frame. The newest transform, or one between two frames, puts them metres off.
+TEST_F(PipelineTest, EachFrameUsesTheTransformOfItsOwnStamp) {
+  ASSERT_NO_FATAL_FAILURE(startFeed());
+  ros::Publisher tf = tfPublisher();
+  const Eigen::Isometry3d poses[2] = {
+      Eigen::Isometry3d::Identity(),
+      Eigen::Translation3d(3.0, -2.0, 0.0) * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())};
+  std::vector<Eigen::Vector3d> first_centres;  // the first frame's, in base_link
+  for (int frame = 0; frame < 6; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    const Eigen::Isometry3d& pose = poses[frame % 2];
+    const ros::Time stamp = wholeMicroseconds(ros::Time::now());
+    tf.publish(worldFromBase(pose, stamp));
+    const ObjectsConstPtr objects = sendFrame(stamp);
+    ASSERT_NO_FATAL_FAILURE(expectObjectsFound(objects));
+    EXPECT_EQ(objects->header.frame_id, "world");
+    std::vector<Eigen::Vector3d> centres;
+    for (const Solid& solid : solids(*objects)) centres.push_back(pose.inverse() * solid.center);
+    if (first_centres.empty()) {
+      first_centres = centres;
+      continue;
+    }
+    for (const Eigen::Vector3d& centre : centres) {
+      double nearest = INFINITY;
+      for (const Eigen::Vector3d& first : first_centres) {
+        nearest = std::min(nearest, (centre - first).norm());
+      }
+      EXPECT_LT(nearest, 0.02) << "an object at (" << centre.transpose()
+                               << ") in base_link, not where frame 0 had one";
+    }
+  }
+}
+
+// TF late (issue 16): each frame's transform comes after its cloud. The stages wait for it at
+// most ~tf_timeout (set to 1 s for both in tf_late.test): 0.4 s late, every frame is
+// processed; 10 s late, the frame is answered before its transform comes, with "no transform"
+// as the reason, and the frames after it are processed again: no stall.
+TEST_F(PipelineTest, LateTransformIsWaitedForThenReported) {
+  ASSERT_NO_FATAL_FAILURE(startFeed());
+  ros::Publisher tf = tfPublisher();
+  const Eigen::Isometry3d pose(Eigen::Translation3d(1.0, 0.5, 0.0));
+  // A frame whose transform is sent `late` s after the cloud; waits for its objects message.
+  auto sendLate = [&](double late) {
+    const ros::Time stamp = wholeMicroseconds(ros::Time::now());
+    scene_.header.stamp = stamp;
+    input_.publish(scene_);
+    ros::WallDuration(late).sleep();
+    tf.publish(worldFromBase(pose, stamp));
+    ObjectsConstPtr answer;
+    waitFor([&] { return (answer = objectsFor(stamp)) != nullptr; }, 30.0);
+    return answer;
+  };
+  for (int frame = 0; frame < 3; ++frame) {
+    SCOPED_TRACE("transform 0.4 s late, frame " + std::to_string(frame));
+    expectObjectsFound(sendLate(0.4));
+  }
+  {
+    SCOPED_TRACE("transform 10 s late");
+    const double late = 10.0;
+    const ros::Time stamp = wholeMicroseconds(ros::Time::now());
+    const ros::WallTime sent = ros::WallTime::now();
+    const ObjectsConstPtr objects = sendFrame(stamp, late);
+    ASSERT_TRUE(objects) << "not answered before its transform came";
+    std::printf("frame without its transform answered in %.2f s\n",
+                (ros::WallTime::now() - sent).toSec());
+    EXPECT_FALSE(objects->table_found);
+    EXPECT_EQ(objectCount(*objects), 0u);
+    const std::string text = "no transform from up_frame 'world'";
+    EXPECT_NE(objects->reason.find(text), std::string::npos) << objects->reason;
+    EXPECT_TRUE(waitFor([&] { return logsContaining(text, rosgraph_msgs::Log::WARN) >= 1; }, 5.0))
+        << "a warning naming the frame";
+    ros::WallDuration(std::max(0.0, late - (ros::WallTime::now() - sent).toSec())).sleep();
+    tf.publish(worldFromBase(pose, stamp));
+  }
+  for (int frame = 0; frame < 2; ++frame) {
+    SCOPED_TRACE("after the late one, frame " + std::to_string(frame));
+    expectObjectsFound(sendLate(0.0));
+  }
+}
+
+// A timestamp going backwards (issue 16: a bag played with --loop): the frames' stamps and their
+// transforms on /tf (each sent just before its frame, as a bag interleaves them) jump back 30 s,
+// more than tf2 keeps (10 s), so tf2 refuses the new transforms as too old until a stage forgets
+// the old ones, which it does on the first frame stamped before its last. Both stages warn,
+// naming the jump, and every frame gets its objects message. The first frame after the jump
+// usually lacks its transform at TableSegmentation (refused before the stage saw the jump), the
+// next one at ShapeEstimation (the first frame that stage sees after the jump); from the third
+// on every frame has its objects again. Without forgetting, none would.
+TEST_F(PipelineTest, StampsGoingBackKeepTheChainRunning) {
+  ASSERT_NO_FATAL_FAILURE(startFeed());
+  ros::Publisher tf = tfPublisher();
+  const Eigen::Isometry3d pose(Eigen::Translation3d(-1.0, 2.0, 0.0));
+  ros::Duration back(0.0);  // how far the stamps went back
+  auto sendWithTransform = [&] {
+    const ros::Time stamp = wholeMicroseconds(ros::Time::now() - back);
+    tf.publish(worldFromBase(pose, stamp));
+    return sendFrame(stamp);
+  };
+  for (int frame = 0; frame < 3; ++frame) {
+    SCOPED_TRACE("before the jump, frame " + std::to_string(frame));
+    expectObjectsFound(sendWithTransform());
+  }
+  back = ros::Duration(30.0);
+  for (int frame = 0; frame < 2; ++frame) {
+    const ObjectsConstPtr objects = sendWithTransform();
+    ASSERT_TRUE(objects) << "no objects message for frame " << frame << " after the jump";
+    std::printf("after the jump, frame %d: %s\n", frame,
+                objects->table_found ? "found" : objects->reason.c_str());
+    if (!objects->table_found) {
+      EXPECT_NE(objects->reason.find("no transform"), std::string::npos) << objects->reason;
+    }
+  }
+  for (int frame = 0; frame < 3; ++frame) {
+    SCOPED_TRACE("after the jump, frame " + std::to_string(frame));
+    expectObjectsFound(sendWithTransform());
+  }
+  const std::string text = "frame stamps went back";
+  EXPECT_TRUE(waitFor([&] { return logsContaining(text, rosgraph_msgs::Log::WARN) >= 2; }, 5.0))
+      << "a warning naming the jump from each stage";
+  EXPECT_EQ(logsContaining("more than tf's cache time", rosgraph_msgs::Log::WARN), 2);
 }
 
 // A given up that disagrees with the scene (the level-camera guess on a camera looking 40 deg

@@ -76,12 +76,13 @@ class StageMonitor {
   // A standing warning under `key` (e.g. "up": the given up disagrees with the scene): level
   // WARN on /diagnostics and a throttled log line while set; an empty `text` clears it.
   void setWarning(const std::string& key, const std::string& text);
+  // A problem that is no frame's (e.g. frame stamps going back), logged throttled by its key.
+  void log(const Problem& problem);
 
   static constexpr double kSilentInputSeconds = 5.0;
 
  private:
   void publish(const ros::SteadyTimerEvent&);
-  void log(const Problem& problem);
   // "no input for N s since start: ..." when silent long enough (asks the master), else "".
   std::string silentInputWarning();
 
