@@ -44,13 +44,29 @@ CloudPtr wallPiece(float r_bottom, float r_top, float height, float bottom,
 
 // Body d 65 mm up to 120 mm, a shoulder narrowing to d 24 mm at 155 mm, the neck up to 205 mm
 // (the rendered bottle's proportions); the split parts them on the shoulder, at d 44 mm.
-TEST(RejoinNecks, BottleNeckJoinsItsBody) {
-  const synthetic::Sampler s = synthetic::voxelGridSampler();
+std::pair<CloudPtr, CloudPtr> bottleBodyAndNeck(const synthetic::Sampler& s) {
   auto body = wallPiece(0.0325f, 0.0325f, 0.12f, 0.0f, s);
   *body += *wallPiece(0.0325f, 0.022f, 0.018f, 0.12f, s);
   auto neck = wallPiece(0.022f, 0.012f, 0.017f, 0.138f, s);
   *neck +=
       *synthetic::lifted(synthetic::roundObject(0.012f, 0.012f, 0.05f, {0.0f, 0.0f}, s), 0.155f);
+  return {body, neck};
+}
+
+void expectOneBottle(const Fitted& fitted, const CloudPtr& body, const CloudPtr& neck) {
+  ASSERT_EQ(fitted.fits.size(), 1u);
+  ASSERT_EQ(fitted.clusters.size(), 1u);
+  ASSERT_EQ(fitted.supports.size(), 1u);
+  const ShapeFit& bottle = fitted.fits[0];
+  EXPECT_EQ(bottle.type, ShapeType::Cylinder) << bottle.reason;
+  EXPECT_NEAR(bottle.radius, 0.0325f, 0.002f);
+  EXPECT_NEAR(bottle.height, 0.205f, 0.005f);
+  EXPECT_EQ(fitted.clusters[0]->size(), body->size() + neck->size());
+}
+
+TEST(RejoinNecks, BottleNeckJoinsItsBody) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const auto [body, neck] = bottleBodyAndNeck(s);
   const ShapeEstimator estimator;
   Plane table;
   Fitted fitted = fitInCameraFrame({body, neck}, s, estimator, table);
@@ -65,13 +81,30 @@ TEST(RejoinNecks, BottleNeckJoinsItsBody) {
   const std::string before = describe(fitted.fits[0]) + "; " + describe(fitted.fits[1]);
   rejoinNecks(estimator, table, ViewBounds(), fitted.clusters, fitted.supports, fitted.fits);
   ASSERT_EQ(fitted.fits.size(), 1u) << before;
-  ASSERT_EQ(fitted.clusters.size(), 1u);
-  ASSERT_EQ(fitted.supports.size(), 1u);
-  const ShapeFit& bottle = fitted.fits[0];
-  EXPECT_EQ(bottle.type, ShapeType::Cylinder) << bottle.reason;
-  EXPECT_NEAR(bottle.radius, 0.0325f, 0.002f);
-  EXPECT_NEAR(bottle.height, 0.205f, 0.005f);
-  EXPECT_EQ(fitted.clusters[0]->size(), body->size() + neck->size());
+  expectOneBottle(fitted, body, neck);
+}
+
+TEST(RejoinNecks, NeckFittedOnTheTableJoinsItsBody) {
+  // A neck whose support came out the table: its solid stands on the table through the body
+  // (a rendered RealSense bottle's neck, r 18 mm, h 261 mm), yet its points start on the
+  // shoulder, and that is where it rests.
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const auto [body, neck] = bottleBodyAndNeck(s);
+  const ShapeEstimator estimator;
+  Plane table;
+  Fitted fitted = fitInCameraFrame({body, neck}, s, estimator, table);
+  ASSERT_EQ(fitted.fits.size(), 2u);
+  ShapeFit& upper = fitted.fits[1];
+  ASSERT_TRUE(upper.ok) << upper.reason;
+  // The neck's solid stretched down to the table, as a fit on the table's support makes it.
+  float& height = upper.type == ShapeType::Cube ? upper.dimensions.z() : upper.height;
+  const float bottom = table.signedDistance(upper.center) - 0.5f * height;
+  ASSERT_GT(bottom, 0.1f);
+  upper.center -= 0.5f * bottom * table.normal.normalized();
+  height += bottom;
+  fitted.supports[1] = table;
+  rejoinNecks(estimator, table, ViewBounds(), fitted.clusters, fitted.supports, fitted.fits);
+  expectOneBottle(fitted, body, neck);
 }
 
 // A soup can standing on a box: the box below is no body, both stay.
