@@ -665,11 +665,6 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
 
 // The least height of a table top above the floor it stands on [m] (a coffee table: 0.4 m).
 constexpr float kTableAboveFloor = 0.3f;
-// The level search looks at this many times table.max_planes: box tops over the hidden table
-// (refused: the table shows below them) and RANSAC planes through scattered points take
-// searches before the table's gaps do (rendered covered scene 3877104083: floor, two box-top
-// levels, one refused plane; the table came fifth).
-constexpr int kLevelSearchPlanes = 2;
 
 // On a table mostly covered by boxes, planes tilted 5-7 deg through box tops and the table's
 // gaps (within up_tolerance_deg) can have the most inliers and take every search: the table is
@@ -695,10 +690,8 @@ void preferHigherLevelSupport(const Cloud& cloud, const TableParams& params,
     return !level(c) && support.signedDistance(c.centroid) >= kTableAboveFloor;
   };
   if (std::none_of(candidates.begin(), candidates.end(), tilted_high_above)) return;
-  TableParams level_params = params;
-  level_params.max_planes = kLevelSearchPlanes * params.max_planes;
   std::vector<Candidate> level_candidates =
-      findPlanes(cloud, level_params, NormalConstraint{up, kParallelCosine, false});
+      findPlanes(cloud, params, NormalConstraint{up, kParallelCosine, false});
   std::vector<int> level_objects;
   bool with_objects = false;
   const int level_chosen =
