@@ -60,38 +60,57 @@ struct Footprint {
   std::vector<Eigen::Vector2f> hull;  // convex hull on the table, in (u, v)
 };
 
+// Whether clusters a and b were parted under their own top faces (cluster_split.h).
+bool keptApart(const std::vector<int>* side_by_side, size_t a, size_t b) {
+  return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
+         (*side_by_side)[a] >= 0 && (*side_by_side)[a] == (*side_by_side)[b];
+}
+
 int root(std::vector<int>& parent, int i) {
   while (parent[i] != i) i = parent[i] = parent[parent[i]];
   return i;
 }
 
 // The clusters merged by the union-find forest `parent`, largest first; the caller's clouds are
-// not changed.
-std::vector<CloudPtr> mergeGroups(const std::vector<CloudPtr>& clusters, std::vector<int>& parent) {
-  std::vector<CloudPtr> joined;
+// not changed. `side_by_side` (when not empty) follows the merged clusters: a merged cluster
+// keeps the largest number of its members.
+std::vector<CloudPtr> mergeGroups(const std::vector<CloudPtr>& clusters, std::vector<int>& parent,
+                                  std::vector<int>* side_by_side) {
+  std::vector<std::pair<CloudPtr, int>> joined;
   std::vector<bool> copied;
   std::vector<int> joined_index(clusters.size(), -1);
+  const bool grouped = side_by_side && side_by_side->size() == clusters.size();
   for (size_t c = 0; c < clusters.size(); ++c) {
     const int r = root(parent, static_cast<int>(c));
+    const int group = grouped ? (*side_by_side)[c] : -1;
     if (joined_index[r] < 0) {
       joined_index[r] = static_cast<int>(joined.size());
-      joined.push_back(clusters[c]);
+      joined.emplace_back(clusters[c], group);
       copied.push_back(false);
       continue;
     }
     const int j = joined_index[r];
-    if (!copied[j]) joined[j] = std::make_shared<Cloud>(*joined[j]), copied[j] = true;
-    *joined[j] += *clusters[c];
+    auto& [cloud, joined_group] = joined[j];
+    if (!copied[j]) cloud = std::make_shared<Cloud>(*cloud), copied[j] = true;
+    *cloud += *clusters[c];
+    joined_group = std::max(joined_group, group);
   }
   std::stable_sort(joined.begin(), joined.end(),
-                   [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });
-  return joined;
+                   [](const auto& a, const auto& b) { return a.first->size() > b.first->size(); });
+  std::vector<CloudPtr> merged;
+  if (grouped) side_by_side->clear();
+  for (const auto& [cloud, group] : joined) {
+    merged.push_back(cloud);
+    if (grouped) side_by_side->push_back(group);
+  }
+  return merged;
 }
 
 }  // namespace
 
 std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, const Plane& table,
-                                              const Eigen::Vector3f& viewpoint) {
+                                              const Eigen::Vector3f& viewpoint,
+                                              std::vector<int>* side_by_side) {
   if (clusters.size() < 2) return clusters;
   const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
   const float eye_height = table.signedDistance(viewpoint);
@@ -136,7 +155,8 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   std::vector<bool> open(clusters.size(), false);  // an inside reaching the rim was seen in it
   for (size_t inside = 0; inside < clusters.size(); ++inside) {
     for (size_t outer = 0; outer < clusters.size(); ++outer) {
-      if (outer != inside && seenThroughOpening(inside, footprints[outer], true)) {
+      if (outer != inside && !keptApart(side_by_side, inside, outer) &&
+          seenThroughOpening(inside, footprints[outer], true)) {
         open[outer] = true;
         parent[root(parent, static_cast<int>(inside))] = root(parent, static_cast<int>(outer));
       }
@@ -156,18 +176,19 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
     const int group = root(parent, static_cast<int>(outer));
     const Footprint rim = footprintOf(groups[group]);
     for (size_t piece = 0; piece < clusters.size(); ++piece) {
-      if (groups[piece].size() == 1 &&
+      if (groups[piece].size() == 1 && !keptApart(side_by_side, piece, outer) &&
           root(parent, static_cast<int>(piece)) == static_cast<int>(piece) &&
           seenThroughOpening(piece, rim, false)) {
         parent[piece] = group;
       }
     }
   }
-  return mergeGroups(clusters, parent);
+  return mergeGroups(clusters, parent, side_by_side);
 }
 
 std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters, const Plane& table,
-                                                 const Eigen::Vector3f& viewpoint) {
+                                                 const Eigen::Vector3f& viewpoint,
+                                                 std::vector<int>* side_by_side) {
   if (clusters.size() < 3) return clusters;  // two parts and an occluder
   std::vector<float> top(clusters.size(), -std::numeric_limits<float>::max());
   for (size_t c = 0; c < clusters.size(); ++c) {
@@ -254,7 +275,9 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   std::iota(parent.begin(), parent.end(), 0);
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
-      if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b)) continue;
+      if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b) ||
+          keptApart(side_by_side, a, b))
+        continue;
       if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.
       float shortest = 0.0f;
@@ -276,7 +299,7 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
       if (explained) parent[root(parent, a)] = root(parent, b);
     }
   }
-  return mergeGroups(clusters, parent);
+  return mergeGroups(clusters, parent, side_by_side);
 }
 
 }  // namespace tabletop_shapes

@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <unordered_map>
 
 namespace tabletop_shapes {
 namespace {
@@ -287,6 +288,252 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
   }
 }
 
+// ---- side by side under their own tops (issue 15) ----
+// Touching objects whose tops lie within kTopStep of each other, or whose front faces form one
+// plane, meet at no concave seam that parts them; what tells them apart is the top: each
+// object's points lie under its own level top face, and one solid has one. Heights on a
+// footprint grid (kFootprintCell), each cell its highest point: cells of one top face differ by
+// less than kTopFaceStep from their neighbours (Kinect depth steps at 1.3 m are ~5 mm, about
+// 3 mm along up seen 40-55 deg down), the tops of touching neighbours mostly by more.
+constexpr float kTopFaceStep = 0.006f;  // [m]
+// A top face is level: its cells' heights spread over less than this [m] (a lying can's or a
+// cone's side chains cells down its slope).
+constexpr float kTopFaceSpread = 0.02f;
+// A top face covers at least this share of its outline (a box top or can lid does; a mug's
+// rim or a bottle's shoulder is a ring).
+constexpr float kTopFaceFill = 0.6f;
+// A top face is at least this wide [cells]: a strip down a lying can's side is 1-2 cells wide.
+constexpr float kTopFaceWidth = 3.0f;
+
+// The width of a convex polygon: its smallest extent across, over its edges' directions.
+float widthOf(const std::vector<Eigen::Vector2f>& hull) {
+  float width = std::numeric_limits<float>::infinity();
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - hull[i];
+    const Eigen::Vector2f across = Eigen::Vector2f(-edge.y(), edge.x()).normalized();
+    float extent = 0.0f;
+    for (const Eigen::Vector2f& corner : hull)
+      extent = std::max(extent, across.dot(corner - hull[i]));
+    width = std::min(width, extent);
+  }
+  return width;
+}
+
+struct FootprintCell {
+  int64_t x, y;
+  float height;     // of its highest point above the table
+  float low;        // of its lowest point
+  int region = -1;  // cells joined by kTopFaceStep steps; -1 in a steep cell
+  // A vertical face (or an edge) projects onto the cell: it joins no top face, or the faces of
+  // a box behind a lower one would chain both tops into one region.
+  bool steep() const { return height - low > kTopFaceStep; }
+};
+
+struct TopFace {
+  std::vector<Eigen::Vector2f> outline;  // convex hull of its points' footprints
+  float height;                          // its highest cell
+};
+
+// The level top faces of the cluster's objects: regions of the height grid of at least
+// kMinTopCells cells, level and filled, not lying within the outline of a higher region (the
+// inside of a cup or bowl seen within its rim).
+std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& heights,
+                              const std::vector<Eigen::Vector2f>& footprints,
+                              std::vector<uint64_t>& cell_of_point,
+                              std::unordered_map<uint64_t, FootprintCell>& cells) {
+  for (size_t i = 0; i < cluster.size(); ++i) {
+    const Eigen::Vector2f q = footprints[i] / kFootprintCell;
+    const int64_t x = voxel_key::floorToInt(q.x()), y = voxel_key::floorToInt(q.y());
+    const uint64_t key = voxel_key::pack(x, y, 0);
+    cell_of_point[i] = key;
+    auto [it, added] = cells.try_emplace(key, FootprintCell{x, y, heights[i], heights[i]});
+    if (!added) {
+      it->second.height = std::max(it->second.height, heights[i]);
+      it->second.low = std::min(it->second.low, heights[i]);
+    }
+  }
+  // Regions: flood fill over the 8 neighbours within kTopFaceStep, steep cells left out.
+  std::vector<std::vector<const FootprintCell*>> regions;
+  std::vector<uint64_t> stack;
+  for (auto& [key, seed] : cells) {
+    if (seed.region >= 0 || seed.steep()) continue;
+    seed.region = static_cast<int>(regions.size());
+    regions.emplace_back(1, &seed);
+    stack.assign(1, key);
+    while (!stack.empty()) {
+      const FootprintCell& cell = cells.at(stack.back());
+      stack.pop_back();
+      for (int64_t dx = -1; dx <= 1; ++dx) {
+        for (int64_t dy = -1; dy <= 1; ++dy) {
+          const uint64_t next_key = voxel_key::pack(cell.x + dx, cell.y + dy, 0);
+          auto next = cells.find(next_key);
+          if (next == cells.end() || next->second.region >= 0 || next->second.steep() ||
+              std::abs(next->second.height - cell.height) > kTopFaceStep)
+            continue;
+          next->second.region = seed.region;
+          regions.back().push_back(&next->second);
+          stack.push_back(next_key);
+        }
+      }
+    }
+  }
+  // Outlines of the larger regions (cell centres), for the fill and the nesting tests.
+  std::vector<std::vector<Eigen::Vector2f>> outlines(regions.size());
+  std::vector<float> top(regions.size()), bottom(regions.size());
+  for (size_t r = 0; r < regions.size(); ++r) {
+    top[r] = -std::numeric_limits<float>::infinity();
+    bottom[r] = std::numeric_limits<float>::infinity();
+    std::vector<Eigen::Vector2f> centres;
+    for (const FootprintCell* cell : regions[r]) {
+      top[r] = std::max(top[r], cell->height);
+      bottom[r] = std::min(bottom[r], cell->height);
+      centres.emplace_back(cell->x + 0.5f, cell->y + 0.5f);
+    }
+    if (regions[r].size() >= kMinTopCells) outlines[r] = convexHull2d(std::move(centres));
+  }
+  auto polygonArea = [](const std::vector<Eigen::Vector2f>& hull, float& perimeter) {
+    float area = 0.0f;
+    perimeter = 0.0f;
+    for (size_t i = 0; i < hull.size(); ++i) {
+      const Eigen::Vector2f &a = hull[i], &b = hull[(i + 1) % hull.size()];
+      area += 0.5f * (a.x() * b.y() - b.x() * a.y());
+      perimeter += (b - a).norm();
+    }
+    return area;
+  };
+  std::vector<TopFace> faces;
+  std::vector<int> face_of_region(regions.size(), -1), region_of_face;
+  for (size_t r = 0; r < regions.size(); ++r) {
+    if (outlines[r].size() < 3 || top[r] - bottom[r] > kTopFaceSpread ||
+        widthOf(outlines[r]) + 1.0f < kTopFaceWidth)
+      continue;
+    // Cells a filled convex region of this outline holds (area, half the boundary cells, 1).
+    float perimeter = 0.0f;
+    const float area = polygonArea(outlines[r], perimeter);
+    if (regions[r].size() < kTopFaceFill * (area + 0.5f * perimeter + 1.0f)) continue;
+    auto withinHigher = [&](size_t higher) {
+      if (higher == r || outlines[higher].size() < 3 || top[higher] <= top[r] + kTopFaceStep)
+        return false;
+      size_t inside = 0;
+      for (const FootprintCell* cell : regions[r])
+        inside += insideDistance(outlines[higher], {cell->x + 0.5f, cell->y + 0.5f}) >= 0.0f;
+      return 2 * inside >= regions[r].size();
+    };
+    bool nested = false;
+    for (size_t higher = 0; higher < regions.size() && !nested; ++higher)
+      nested = withinHigher(higher);
+    if (nested) continue;
+    face_of_region[r] = static_cast<int>(faces.size());
+    region_of_face.push_back(static_cast<int>(r));
+    faces.push_back({{}, top[r]});
+  }
+  // Outlines: the points of a face's cells and of the steep cells around them (its edges) at
+  // its height, within half a step.
+  std::vector<std::vector<Eigen::Vector2f>> face_points(faces.size());
+  std::vector<int> near_faces;
+  for (size_t i = 0; i < cluster.size(); ++i) {
+    const FootprintCell& cell = cells.at(cell_of_point[i]);
+    near_faces.clear();
+    if (!cell.steep()) {
+      if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
+    } else {
+      for (int64_t dx = -1; dx <= 1; ++dx) {
+        for (int64_t dy = -1; dy <= 1; ++dy) {
+          auto next = cells.find(voxel_key::pack(cell.x + dx, cell.y + dy, 0));
+          if (next != cells.end() && next->second.region >= 0)
+            near_faces.push_back(face_of_region[next->second.region]);
+        }
+      }
+      std::sort(near_faces.begin(), near_faces.end());
+      near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
+    }
+    for (int f : near_faces) {
+      if (f < 0) continue;
+      const int r = region_of_face[f];
+      if (heights[i] >= bottom[r] - 0.5f * kTopFaceStep &&
+          heights[i] <= top[r] + 0.5f * kTopFaceStep)
+        face_points[f].push_back(footprints[i]);
+    }
+  }
+  for (TopFace& face : faces)
+    face.outline = convexHull2d(std::move(face_points[&face - &faces[0]]));
+  // Side by side, outlines do not overlap: the top of a box under another, seen around it,
+  // surrounds the upper one's (the stack split parts them at their concave seam).
+  auto underAnother = [&](const TopFace& lower) {
+    for (const TopFace& upper : faces) {
+      if (upper.height <= lower.height || upper.outline.size() < 3) continue;
+      size_t inside = 0;
+      for (const Eigen::Vector2f& corner : upper.outline)
+        inside += insideDistance(lower.outline, corner) > kFootprintCell;
+      if (2 * inside >= upper.outline.size()) return true;
+    }
+    return false;
+  };
+  std::vector<TopFace> outlined;
+  for (const TopFace& face : faces) {
+    if (face.outline.size() >= 3 && !underAnother(face)) outlined.push_back(face);
+  }
+  return outlined;
+}
+
+// Each point's top face: among those not lower than the point, the one whose outline it lies
+// deepest in (a vertical face projects onto its own top's edge, beside its neighbour's).
+std::vector<int> underWhichTop(const std::vector<TopFace>& faces, const std::vector<float>& heights,
+                               const std::vector<Eigen::Vector2f>& footprints) {
+  std::vector<int> face_of(heights.size(), 0);
+  for (size_t i = 0; i < heights.size(); ++i) {
+    float best = -std::numeric_limits<float>::infinity();
+    bool best_over = false;
+    for (size_t f = 0; f < faces.size(); ++f) {
+      const bool over = faces[f].height >= heights[i] - 0.5f * kTopFaceStep;
+      const float inside = insideDistance(faces[f].outline, footprints[i]);
+      if ((over && !best_over) || (over == best_over && inside > best)) {
+        best = inside;
+        best_over = over;
+        face_of[i] = static_cast<int>(f);
+      }
+    }
+  }
+  return face_of;
+}
+
+// The part's objects standing side by side, one per top face; the part itself when it has fewer
+// than two top faces, or when a face would hold fewer than min_points (that face is dropped).
+std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points) {
+  const Cloud& cloud = *part;
+  if (static_cast<int>(cloud.size()) < 2 * min_points) return {part};
+  const TableProjection onTable(table);
+  std::vector<float> heights(cloud.size());
+  std::vector<Eigen::Vector2f> footprints(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    heights[i] = table.signedDistance(cloud[i].getVector3fMap());
+    footprints[i] = onTable(cloud[i]);
+  }
+  std::vector<uint64_t> cell_of_point(cloud.size());
+  std::unordered_map<uint64_t, FootprintCell> cells;
+  std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cell_of_point, cells);
+  std::vector<int> face_of;
+  while (faces.size() >= 2) {
+    face_of = underWhichTop(faces, heights, footprints);
+    std::vector<int> size(faces.size(), 0);
+    for (int f : face_of) ++size[f];
+    const auto smallest = std::min_element(size.begin(), size.end());
+    if (*smallest >= min_points) break;
+    faces.erase(faces.begin() + (smallest - size.begin()));
+  }
+  if (faces.size() < 2) return {part};
+  std::vector<std::vector<int>> indices(faces.size());
+  for (size_t i = 0; i < face_of.size(); ++i) indices[face_of[i]].push_back(static_cast<int>(i));
+  std::vector<CloudPtr> out;
+  for (const std::vector<int>& of_face : indices) {
+    auto object = std::make_shared<Cloud>(cloud, of_face);
+    object->header = cloud.header;
+    object->is_dense = true;
+    out.push_back(object);
+  }
+  return out;
+}
+
 }  // namespace
 
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params) {
@@ -315,11 +562,12 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   return false;
 }
 
-std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
-                                          const ClusteringParams& params) {
-  const int min_points = std::max(1, params.split_min_points);
-  if (!cluster || !(params.split_concavity_deg > 0.0f) || !(params.split_patch_size > 0.0f) ||
-      static_cast<int>(cluster->size()) < 2 * min_points ||
+namespace {
+
+// The LCCP parts of a cluster that can hold a stack; the cluster itself when it cannot.
+std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
+                                 const ClusteringParams& params, int min_points) {
+  if (static_cast<int>(cluster->size()) < 2 * min_points ||
       !mayHoldAStack(*cluster, table, params)) {
     return {cluster};
   }
@@ -342,9 +590,39 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     part->is_dense = true;
     out.push_back(part);
   }
-  std::stable_sort(out.begin(), out.end(),
-                   [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });
   return out;
+}
+
+}  // namespace
+
+std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
+                                          const ClusteringParams& params,
+                                          std::vector<int>* side_by_side) {
+  const int min_points = std::max(1, params.split_min_points);
+  std::vector<std::pair<CloudPtr, int>> out;  // part, side-by-side group
+  if (!cluster || !(params.split_concavity_deg > 0.0f) || !(params.split_patch_size > 0.0f)) {
+    out.emplace_back(cluster, -1);
+  } else {
+    // Stacked objects part at concave seams, then objects side by side in each part under
+    // their own top faces (LCCP joins touching objects across a front face they share).
+    int group = 0;
+    for (const CloudPtr& part : splitStack(cluster, table, params, min_points)) {
+      const std::vector<CloudPtr> objects = splitUnderTopFaces(part, table, min_points);
+      for (const CloudPtr& object : objects)
+        out.emplace_back(object, objects.size() > 1 ? group : -1);
+      ++group;
+    }
+    std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+      return a.first->size() > b.first->size();
+    });
+  }
+  std::vector<CloudPtr> parts;
+  if (side_by_side) side_by_side->clear();
+  for (const auto& [part, group] : out) {
+    parts.push_back(part);
+    if (side_by_side) side_by_side->push_back(group);
+  }
+  return parts;
 }
 
 }  // namespace tabletop_shapes

@@ -46,20 +46,31 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
 
   // Clusters are split independently: one per core at a time, largest first (PCL's order).
   std::vector<std::vector<CloudPtr>> parts(cluster_indices.size());
+  std::vector<std::vector<int>> side_by_side(cluster_indices.size());
   parallelFor(cluster_indices.size(), [&](size_t i) {
     auto cluster = std::make_shared<Cloud>(*input, cluster_indices[i].indices);
     cluster->header = input->header;
     cluster->is_dense = true;
-    parts[i] =
-        table ? splitAtConcaveSeams(cluster, *table, params) : std::vector<CloudPtr>{cluster};
+    parts[i] = table ? splitAtConcaveSeams(cluster, *table, params, &side_by_side[i])
+                     : std::vector<CloudPtr>{cluster};
   });
-  for (const std::vector<CloudPtr>& cluster_parts : parts) {
-    clusters.insert(clusters.end(), cluster_parts.begin(), cluster_parts.end());
+  // Side-by-side groups numbered over all clusters.
+  std::vector<int> groups;
+  int first_group = 0;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    clusters.insert(clusters.end(), parts[i].begin(), parts[i].end());
+    int last = -1;
+    for (size_t p = 0; p < parts[i].size(); ++p) {
+      const int group = p < side_by_side[i].size() ? side_by_side[i][p] : -1;
+      groups.push_back(group < 0 ? -1 : first_group + group);
+      last = std::max(last, group);
+    }
+    first_group += last + 1;
   }
   if (table) {
     const Eigen::Vector3f viewpoint = cloud->sensor_origin_.head<3>();
-    return joinPartsHiddenInTheMiddle(joinInsidesSeenOverRims(clusters, *table, viewpoint), *table,
-                                      viewpoint);
+    std::vector<CloudPtr> joined = joinInsidesSeenOverRims(clusters, *table, viewpoint, &groups);
+    return joinPartsHiddenInTheMiddle(std::move(joined), *table, viewpoint, &groups);
   }
   std::stable_sort(clusters.begin(), clusters.end(),
                    [](const CloudPtr& a, const CloudPtr& b) { return a->size() > b->size(); });

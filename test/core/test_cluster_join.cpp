@@ -16,12 +16,13 @@ namespace tabletop_shapes {
 namespace {
 
 using JoinFunction = std::vector<CloudPtr> (*)(std::vector<CloudPtr>, const Plane&,
-                                               const Eigen::Vector3f&);
+                                               const Eigen::Vector3f&, std::vector<int>*);
 
 // Moves table-frame clusters into a camera frame (camera at the origin, as the core assumes)
 // and joins them with `join`; returns the sizes of the results, largest first.
 std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame,
-                                JoinFunction join = joinInsidesSeenOverRims) {
+                                JoinFunction join = joinInsidesSeenOverRims,
+                                std::vector<int> side_by_side = {}) {
   const Eigen::Isometry3f camera_from_table =
       synthetic::cameraFromTable(synthetic::voxelGridSampler());
   std::vector<CloudPtr> clusters;
@@ -31,7 +32,8 @@ std::vector<size_t> joinedSizes(const std::vector<CloudPtr>& table_frame,
   }
   const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
   std::vector<size_t> sizes;
-  for (const CloudPtr& c : join(clusters, table, Eigen::Vector3f::Zero())) {
+  for (const CloudPtr& c : join(clusters, table, Eigen::Vector3f::Zero(),
+                                side_by_side.empty() ? nullptr : &side_by_side)) {
     sizes.push_back(c->size());
   }
   return sizes;
@@ -84,6 +86,8 @@ TEST(ClusterJoin, InsideOfABowlJoinsItsOuterWall) {
     ASSERT_GT(inside->size(), 100u);
     EXPECT_EQ(joinedSizes({outer, inside}), std::vector<size_t>{outer->size() + inside->size()})
         << "radius " << r;
+    // Parted by the split under their own top faces (cluster_split.h): never joined again.
+    EXPECT_EQ(joinedSizes({outer, inside}, joinInsidesSeenOverRims, {3, 3}).size(), 2u);
   }
 }
 
@@ -188,6 +192,9 @@ TEST(ClusterJoin, ObjectHiddenInTheMiddleJoinsItsTwoParts) {
   std::vector<size_t> joined = {occluder->size(), left->size() + right->size()};
   std::sort(joined.rbegin(), joined.rend());
   EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle), joined);
+  // Parted by the split under their own top faces (side by side, cluster_split.h): kept apart.
+  EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle, {-1, 0, 0}).size(),
+            3u);
 
   // Without the occluder nothing explains the gap: two objects standing apart.
   EXPECT_EQ(joinedSizes({left, right}, joinPartsHiddenInTheMiddle).size(), 2u);

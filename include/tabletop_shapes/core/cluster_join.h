@@ -14,8 +14,12 @@ namespace tabletop_shapes {
 // camera sees them through the other's opening. In front of a solid object (or under a stacked
 // one) the lines of sight to what is visible never cross its top, so solid neighbours and
 // stacked objects stay apart. `viewpoint` is the camera position, `table` the support plane.
+// `side_by_side`: null or one entry per cluster; clusters with the same number >= 0 stand side
+// by side under their own top faces (cluster_split.h) and are never joined to each other (both
+// joins). It is updated to follow the joined clusters.
 std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, const Plane& table,
-                                              const Eigen::Vector3f& viewpoint);
+                                              const Eigen::Vector3f& viewpoint,
+                                              std::vector<int>* side_by_side = nullptr);
 
 // The clusters with the two visible parts of one object hidden in the middle by another joined
 // (a box behind a box, a can lying behind one), largest first. Two clusters are joined when
@@ -24,6 +28,7 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
 // the gap is explained by that occluder. Two objects standing apart show the table or the
 // background through the gap between them.
 std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters, const Plane& table,
-                                                 const Eigen::Vector3f& viewpoint);
+                                                 const Eigen::Vector3f& viewpoint,
+                                                 std::vector<int>* side_by_side = nullptr);
 
 }  // namespace tabletop_shapes

@@ -15,10 +15,14 @@ namespace tabletop_shapes {
 // and is not split: the split (supervoxels + LCCP) costs far more than fitting.
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params);
 
-// The cluster's parts, largest first; the cluster itself when it is not split (also when
-// mayHoldAStack says no). Parts are kept apart only where one rises above the other (stacked or
-// leaning on it, heights from `table`).
+// The cluster's parts, largest first; the cluster itself when it is not split. Stacked parts
+// (mayHoldAStack) are kept apart where one rises above the other (stacked or leaning on it,
+// heights from `table`); objects side by side where each has a level top face of its own
+// (touching boxes and cans, issue 15). `side_by_side`, when given, gets one entry per part: parts
+// parted under their own top faces share a number >= 0 (the joins of cluster_join.h must not
+// join them again), other parts -1.
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
-                                          const ClusteringParams& params);
+                                          const ClusteringParams& params,
+                                          std::vector<int>* side_by_side = nullptr);
 
 }  // namespace tabletop_shapes
