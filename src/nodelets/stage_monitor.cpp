@@ -223,12 +223,18 @@ void StageMonitor::log(const Problem& problem) {
 
 bool ReasonThrottle::shouldLog(const std::string& reason) {
   const auto now = std::chrono::steady_clock::now();
+  const auto expired = [&](std::chrono::steady_clock::time_point logged) {
+    return std::chrono::duration<double>(now - logged).count() >= period_;
+  };
   std::lock_guard<std::mutex> lock(mutex_);
-  if (reason == last_reason_ && std::chrono::duration<double>(now - last_time_).count() < period_) {
-    return false;
+  const auto found = last_logged_.find(reason);
+  if (found != last_logged_.end() && !expired(found->second)) return false;
+  if (last_logged_.size() > kPruneAbove) {
+    for (auto it = last_logged_.begin(); it != last_logged_.end();) {
+      it = expired(it->second) ? last_logged_.erase(it) : std::next(it);
+    }
   }
-  last_reason_ = reason;
-  last_time_ = now;
+  last_logged_[reason] = now;
   return true;
 }
 

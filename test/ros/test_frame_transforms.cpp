@@ -2,10 +2,13 @@
 // frames is taken at each frame's own stamp, and stamps going back (a looped bag) are reported
 // and, beyond tf2's cache time, let the buffer take the new transforms again, static ones kept.
 #include "tabletop_shapes/ros/frame_transforms.h"
+#include "tabletop_shapes/ros/stage_monitor.h"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace tabletop_shapes {
@@ -90,6 +93,28 @@ TEST_F(FrameTransformsTest, StampsGoingBackWithinTheCacheTimeKeepTheTransforms) 
   ASSERT_EQ(jumps_.size(), 1u);
   EXPECT_EQ(jumps_[0],
             "frame stamps went back 2.000 s (from 103.000 to 101.000; a bag played in a loop?)");
+}
+
+// The stage's log throttle: a looped bag logs "stamps went back" between the "no transform"
+// lines of the frames; each reason stays throttled on its own (before, the last reason only was
+// remembered, and two alternating reasons were both logged with every frame).
+TEST(ReasonThrottle, AlternatingReasonsAreEachThrottled) {
+  bridge::ReasonThrottle throttle(60.0);
+  int logged = 0;
+  for (int frame = 0; frame < 10; ++frame) {
+    logged += throttle.shouldLog("no transform to map");
+    logged += throttle.shouldLog("frame stamps went back");
+  }
+  EXPECT_EQ(logged, 2);
+  EXPECT_TRUE(throttle.shouldLog("a third problem"));
+}
+
+TEST(ReasonThrottle, AReasonIsLoggedAgainAfterItsPeriod) {
+  bridge::ReasonThrottle throttle(0.05);
+  EXPECT_TRUE(throttle.shouldLog("no transform to map"));
+  EXPECT_FALSE(throttle.shouldLog("no transform to map"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  EXPECT_TRUE(throttle.shouldLog("no transform to map"));
 }
 
 }  // namespace

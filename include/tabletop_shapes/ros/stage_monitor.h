@@ -22,18 +22,20 @@ namespace bridge {
 void markPublished(const boost::shared_ptr<const void>& cloud);
 bool wasPublishedInProcess(const void* cloud);
 
-// Throttling by reason: a problem is logged at once when it differs from the last one logged,
-// and at most once per period while it repeats. ROS's *_THROTTLE macros throttle per call
-// site, which would hide a second, different problem behind the first.
+// Throttling by reason: each reason is logged at once the first time and then at most once per
+// period while it repeats, also when other reasons come in between (a looped bag's "stamps went
+// back" between "no transform" lines). ROS's *_THROTTLE macros throttle per call site, which
+// would hide a second, different problem behind the first.
 class ReasonThrottle {
  public:
   explicit ReasonThrottle(double period_seconds) : period_(period_seconds) {}
   bool shouldLog(const std::string& reason);
 
  private:
+  // Reasons are few (a key per kind of problem); the map is pruned of expired ones when large.
+  static constexpr size_t kPruneAbove = 64;
   double period_;
-  std::string last_reason_;
-  std::chrono::steady_clock::time_point last_time_;
+  std::map<std::string, std::chrono::steady_clock::time_point> last_logged_;
   std::mutex mutex_;
 };
 
