@@ -1,5 +1,6 @@
 // Joining the inside of an open object (bowl, pot, cup) to its outer wall: see cluster_join.h.
 #include "tabletop_shapes/core/cluster_join.h"
+#include "tabletop_shapes/core/cluster_split.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
 
@@ -95,15 +96,7 @@ std::vector<CloudPtr> mergeGroups(const std::vector<CloudPtr>& clusters, std::ve
     *cloud += *clusters[c];
     joined_group = std::max(joined_group, group);
   }
-  std::stable_sort(joined.begin(), joined.end(),
-                   [](const auto& a, const auto& b) { return a.first->size() > b.first->size(); });
-  std::vector<CloudPtr> merged;
-  if (grouped) side_by_side->clear();
-  for (const auto& [cloud, group] : joined) {
-    merged.push_back(cloud);
-    if (grouped) side_by_side->push_back(group);
-  }
-  return merged;
+  return largestFirst(std::move(joined), grouped ? side_by_side : nullptr);
 }
 
 }  // namespace

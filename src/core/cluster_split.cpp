@@ -612,17 +612,21 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
         out.emplace_back(object, objects.size() > 1 ? group : -1);
       ++group;
     }
-    std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
-      return a.first->size() > b.first->size();
-    });
   }
-  std::vector<CloudPtr> parts;
-  if (side_by_side) side_by_side->clear();
-  for (const auto& [part, group] : out) {
-    parts.push_back(part);
-    if (side_by_side) side_by_side->push_back(group);
+  return largestFirst(std::move(out), side_by_side);
+}
+
+std::vector<CloudPtr> largestFirst(std::vector<std::pair<CloudPtr, int>> parts,
+                                   std::vector<int>* groups) {
+  std::stable_sort(parts.begin(), parts.end(),
+                   [](const auto& a, const auto& b) { return a.first->size() > b.first->size(); });
+  std::vector<CloudPtr> clouds;
+  if (groups) groups->clear();
+  for (const auto& [cloud, group] : parts) {
+    clouds.push_back(cloud);
+    if (groups) groups->push_back(group);
   }
-  return parts;
+  return clouds;
 }
 
 }  // namespace tabletop_shapes

@@ -6,6 +6,9 @@
 
 #include "tabletop_shapes/core/types.h"
 
+#include <utility>
+#include <vector>
+
 namespace tabletop_shapes {
 
 // Whether the cluster can hold more than one object, one rising above the other, cheaply (a
@@ -14,6 +17,11 @@ namespace tabletop_shapes {
 // noise. A box, cylinder, cup or bowl standing alone has every point under its top's footprint
 // and is not split: the split (supervoxels + LCCP) costs far more than fitting.
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params);
+
+// The clouds of `parts`, largest first (stable), and, when `groups` is given, each one's
+// side-by-side group in the same order (the form splitAtConcaveSeams and the joins return).
+std::vector<CloudPtr> largestFirst(std::vector<std::pair<CloudPtr, int>> parts,
+                                   std::vector<int>* groups);
 
 // The cluster's parts, largest first; the cluster itself when it is not split. Stacked parts
 // (mayHoldAStack) are kept apart where one rises above the other (stacked or leaning on it,
