@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <tuple>
 
 #include "synthetic.h"
 
@@ -53,6 +54,21 @@ std::pair<CloudPtr, CloudPtr> bottleBodyAndNeck(const synthetic::Sampler& s) {
   return {body, neck};
 }
 
+// The bottle's body and neck as two clusters, fitted apart in the camera frame.
+struct BottleParts {
+  CloudPtr body, neck;
+  Plane table;
+  Fitted fitted;
+};
+
+BottleParts fitBottleParts(const ShapeEstimator& estimator) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  BottleParts parts;
+  std::tie(parts.body, parts.neck) = bottleBodyAndNeck(s);
+  parts.fitted = fitInCameraFrame({parts.body, parts.neck}, s, estimator, parts.table);
+  return parts;
+}
+
 void expectOneBottle(const Fitted& fitted, const CloudPtr& body, const CloudPtr& neck) {
   ASSERT_EQ(fitted.fits.size(), 1u);
   ASSERT_EQ(fitted.clusters.size(), 1u);
@@ -65,11 +81,10 @@ void expectOneBottle(const Fitted& fitted, const CloudPtr& body, const CloudPtr&
 }
 
 TEST(RejoinNecks, BottleNeckJoinsItsBody) {
-  const synthetic::Sampler s = synthetic::voxelGridSampler();
-  const auto [body, neck] = bottleBodyAndNeck(s);
   const ShapeEstimator estimator;
-  Plane table;
-  Fitted fitted = fitInCameraFrame({body, neck}, s, estimator, table);
+  BottleParts parts = fitBottleParts(estimator);
+  Fitted& fitted = parts.fitted;
+  const Plane& table = parts.table;
   ASSERT_EQ(fitted.fits.size(), 2u);
   ASSERT_TRUE(fitted.fits[1].ok) << fitted.fits[1].reason;
 
@@ -81,18 +96,17 @@ TEST(RejoinNecks, BottleNeckJoinsItsBody) {
   const std::string before = describe(fitted.fits[0]) + "; " + describe(fitted.fits[1]);
   rejoinNecks(estimator, table, ViewBounds(), fitted.clusters, fitted.supports, fitted.fits);
   ASSERT_EQ(fitted.fits.size(), 1u) << before;
-  expectOneBottle(fitted, body, neck);
+  expectOneBottle(fitted, parts.body, parts.neck);
 }
 
 TEST(RejoinNecks, NeckFittedOnTheTableJoinsItsBody) {
   // A neck whose support came out the table: its solid stands on the table through the body
   // (a rendered RealSense bottle's neck, r 18 mm, h 261 mm), yet its points start on the
   // shoulder, and that is where it rests.
-  const synthetic::Sampler s = synthetic::voxelGridSampler();
-  const auto [body, neck] = bottleBodyAndNeck(s);
   const ShapeEstimator estimator;
-  Plane table;
-  Fitted fitted = fitInCameraFrame({body, neck}, s, estimator, table);
+  BottleParts parts = fitBottleParts(estimator);
+  Fitted& fitted = parts.fitted;
+  const Plane& table = parts.table;
   ASSERT_EQ(fitted.fits.size(), 2u);
   ShapeFit& upper = fitted.fits[1];
   ASSERT_TRUE(upper.ok) << upper.reason;
@@ -104,7 +118,7 @@ TEST(RejoinNecks, NeckFittedOnTheTableJoinsItsBody) {
   height += bottom;
   fitted.supports[1] = table;
   rejoinNecks(estimator, table, ViewBounds(), fitted.clusters, fitted.supports, fitted.fits);
-  expectOneBottle(fitted, body, neck);
+  expectOneBottle(fitted, parts.body, parts.neck);
 }
 
 // A soup can standing on a box: the box below is no body, both stay.

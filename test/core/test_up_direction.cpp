@@ -100,16 +100,29 @@ CloudPtr xyz(const sim::RenderedScene& scene) {
   return cloud;
 }
 
+// The tilted scene's table segmented with `up` (the scene's true up when none is given).
+struct SegmentedScene {
+  sim::RenderedScene scene;
+  CloudPtr cloud;
+  TableParams params;
+  TableResult table;
+};
+
+SegmentedScene segmentTiltedScene(const Eigen::Vector3f* up = nullptr) {
+  SegmentedScene s;
+  s.scene = tiltedScene();
+  s.cloud = xyz(s.scene);
+  s.params.up = up ? *up : s.scene.up;
+  s.table = TableSegmenter(s.params).segment(s.cloud);
+  return s;
+}
+
 }  // namespace
 
 TEST(CheckUpAgainstScene, TheTrueUpPasses) {
-  const sim::RenderedScene scene = tiltedScene();
-  const CloudPtr cloud = xyz(scene);
-  TableParams params;
-  params.up = scene.up;
-  const TableResult table = TableSegmenter(params).segment(cloud);
-  ASSERT_TRUE(table.found) << table.reason;
-  const UpCheck check = checkUpAgainstScene(cloud, params, table);
+  const SegmentedScene s = segmentTiltedScene();
+  ASSERT_TRUE(s.table.found) << s.table.reason;
+  const UpCheck check = checkUpAgainstScene(s.cloud, s.params, s.table);
   ASSERT_TRUE(check.scene_up_found);
   EXPECT_LT(check.up_angle_deg, 3.0f);
   EXPECT_LT(check.table_angle_deg, 3.0f);
@@ -117,11 +130,10 @@ TEST(CheckUpAgainstScene, TheTrueUpPasses) {
 }
 
 TEST(CheckUpAgainstScene, ATableHoldingMostPointsGivesTheScenesUpWithoutAPlaneSearch) {
-  const sim::RenderedScene scene = tiltedScene();
-  const CloudPtr cloud = xyz(scene);
-  TableParams params;
-  params.up = scene.up;
-  const TableResult table = TableSegmenter(params).segment(cloud);
+  const SegmentedScene s = segmentTiltedScene();
+  const CloudPtr& cloud = s.cloud;
+  const TableParams& params = s.params;
+  const TableResult& table = s.table;
   ASSERT_TRUE(table.found) << table.reason;
   size_t finite = 0;
   for (const auto& p : cloud->points) finite += p.getVector3fMap().allFinite();
@@ -146,17 +158,15 @@ TEST(CheckUpAgainstScene, ATableHoldingMostPointsGivesTheScenesUpWithoutAPlaneSe
   const UpCheck walled_check = checkUpAgainstScene(walled, params, table);
   EXPECT_FALSE(walled_check.from_table);
   ASSERT_TRUE(walled_check.scene_up_found);
-  EXPECT_LT(angleDeg(walled_check.scene_up, scene.up), 3.0f);
+  EXPECT_LT(angleDeg(walled_check.scene_up, s.scene.up), 3.0f);
   EXPECT_EQ(walled_check.warning, "");
 }
 
 TEST(CheckUpAgainstScene, TheLevelCameraGuessOnATiltedCameraIsWarnedWithItsAngle) {
-  const sim::RenderedScene scene = tiltedScene();
-  const CloudPtr cloud = xyz(scene);
-  TableParams params;
-  params.up = Eigen::Vector3f(0.0f, -1.0f, 0.0f);  // the old default: a level camera
-  const TableResult table = TableSegmenter(params).segment(cloud);
-  const UpCheck check = checkUpAgainstScene(cloud, params, table);
+  const Eigen::Vector3f level_camera_up(0.0f, -1.0f, 0.0f);  // the old default
+  const SegmentedScene s = segmentTiltedScene(&level_camera_up);
+  const sim::RenderedScene& scene = s.scene;
+  const UpCheck check = checkUpAgainstScene(s.cloud, s.params, s.table);
   ASSERT_TRUE(check.scene_up_found);
   EXPECT_NEAR(check.up_angle_deg, 40.0f, 2.0f);
   EXPECT_LT((check.scene_up - scene.up).norm(), 0.05f) << check.scene_up.transpose();
