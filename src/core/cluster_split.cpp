@@ -499,9 +499,12 @@ std::vector<int> underWhichTop(const std::vector<TopFace>& faces, const std::vec
 
 // The part's objects standing side by side, one per top face; the part itself when it has fewer
 // than two top faces, or when a face would hold fewer than min_points (that face is dropped).
-std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points) {
+// `own_top_faces`: whether each object returned lies under a level top face of its own.
+std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points,
+                                         bool& own_top_faces) {
+  own_top_faces = false;
   const Cloud& cloud = *part;
-  if (static_cast<int>(cloud.size()) < 2 * min_points) return {part};
+  if (static_cast<int>(cloud.size()) < min_points) return {part};
   const TableProjection onTable(table);
   std::vector<float> heights(cloud.size());
   std::vector<Eigen::Vector2f> footprints(cloud.size());
@@ -521,6 +524,7 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
     if (*smallest >= min_points) break;
     faces.erase(faces.begin() + (smallest - size.begin()));
   }
+  own_top_faces = !faces.empty();
   if (faces.size() < 2) return {part};
   std::vector<std::vector<int>> indices(faces.size());
   for (size_t i = 0; i < face_of.size(); ++i) indices[face_of[i]].push_back(static_cast<int>(i));
@@ -604,13 +608,15 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     out.emplace_back(cluster, -1);
   } else {
     // Stacked objects part at concave seams, then objects side by side in each part under
-    // their own top faces (LCCP joins touching objects across a front face they share).
-    int group = 0;
+    // their own top faces (LCCP joins touching objects across a front face they share). Parts
+    // each under a level top face of its own are separate objects, all in one group: the joins
+    // took a lower neighbour seen over a taller one's top edge for its inside, or a neighbour
+    // for a hidden middle (issue 15). A cup's wall (a rim ring), a handle or a box's side cut
+    // off by noise has no top face of its own and may still be joined.
     for (const CloudPtr& part : splitStack(cluster, table, params, min_points)) {
-      const std::vector<CloudPtr> objects = splitUnderTopFaces(part, table, min_points);
-      for (const CloudPtr& object : objects)
-        out.emplace_back(object, objects.size() > 1 ? group : -1);
-      ++group;
+      bool own_top_faces = false;
+      for (const CloudPtr& object : splitUnderTopFaces(part, table, min_points, own_top_faces))
+        out.emplace_back(object, own_top_faces ? 0 : -1);
     }
   }
   return largestFirst(std::move(out), side_by_side);
