@@ -295,6 +295,25 @@ TEST(ClusterSplit, CanTouchingABoxOfNearlyItsHeightComesApart) {
   expectPartsMatch(split(together({box, can})), {box, can});
 }
 
+// Two cans of the same height 2 mm apart: one level region over both tops, whose outline
+// narrows between the two circles (issue 15: same-height neighbours stayed one object).
+TEST(ClusterSplit, TwoCansOfTheSameHeightComeApart) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const CloudPtr left = synthetic::roundObject(0.045f, 0.045f, 0.12f, {-0.046f, 0.0f}, s);
+  const CloudPtr right = synthetic::roundObject(0.045f, 0.045f, 0.12f, {0.046f, 0.0f}, s);
+  expectPartsMatch(split(together({left, right})), {left, right});
+}
+
+// A box 20 x 9 cm stays one object: its top is a rectangle (a ridge of depths, no neck), and a
+// box whose top holds a printed line (geometry only) has one level top.
+TEST(ClusterSplit, LongBoxStaysWhole) {
+  const CloudPtr box =
+      synthetic::box({0.20f, 0.09f, 0.10f}, {0.0f, 0.0f}, 0.3f, synthetic::voxelGridSampler());
+  const std::vector<CloudPtr> parts = split(*box);
+  ASSERT_EQ(parts.size(), 1u);
+  EXPECT_EQ(parts[0]->size(), box->size());
+}
+
 // A block of 3 x 3 boxes 10 x 9 cm, 2 mm apart, tops 7-14 cm high, as the camera sees it: a box's
 // sides facing a neighbour are hidden below the neighbour's top.
 std::vector<CloudPtr> blockOfBoxes() {
