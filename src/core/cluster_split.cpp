@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <set>
 #include <unordered_map>
 
@@ -334,6 +335,164 @@ struct TopFace {
   float height;                          // its highest cell
 };
 
+// The cells a filled convex region of this outline (cell centres) holds: its area, half its
+// boundary cells, 1.
+float filledCells(const std::vector<Eigen::Vector2f>& hull) {
+  float area = 0.0f, perimeter = 0.0f;
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2f &a = hull[i], &b = hull[(i + 1) % hull.size()];
+    area += 0.5f * (a.x() * b.y() - b.x() * a.y());
+    perimeter += (b - a).norm();
+  }
+  return area + 0.5f * perimeter + 1.0f;
+}
+
+// ---- one region, several objects of the same height: split at the necks of its outline ----
+// Neighbours whose tops lie within kTopFaceStep form one region. Where one rectangle or circle
+// cannot explain its outline (a can beside a box, two cans side by side), the outline narrows
+// between them: the depth of its cells (distance to the nearest cell outside, in cells) has a
+// peak in each object and a saddle at the neck between. Two peaks stay apart when the saddle
+// is below kNeckRatio of the smaller peak, and the smaller peak is at least kMinPeakDepth (an
+// object 5 cm across: noise along an outline makes shallow dents, not objects). A single box or
+// can has one peak or a ridge (no neck); an L-shaped outline peaks at its corner.
+constexpr float kNeckRatio = 0.7f;
+constexpr float kMinPeakDepth = 2.5f;  // [cells]
+// An outside cell with at least this many of its 8 neighbours in the region is a hole in the
+// face (a noisy cell), not its edge.
+constexpr int kHoleNeighbours = 6;
+// Only regions filling this share of their outline are split (see topFaces).
+constexpr float kNeckSplitFill = 0.8f;
+
+std::unordered_map<uint64_t, int> indexOfCells(const std::vector<const FootprintCell*>& region) {
+  std::unordered_map<uint64_t, int> index_of;
+  for (size_t i = 0; i < region.size(); ++i)
+    index_of.emplace(voxel_key::pack(region[i]->x, region[i]->y, 0), static_cast<int>(i));
+  return index_of;
+}
+
+// Calls visit(j) for the region's cells j among the 8 neighbours of its cell i.
+template <typename Visit>
+void forNeighboursInRegion(const std::vector<const FootprintCell*>& region,
+                           const std::unordered_map<uint64_t, int>& index_of, int i,
+                           Visit&& visit) {
+  for (int64_t dx = -1; dx <= 1; ++dx) {
+    for (int64_t dy = -1; dy <= 1; ++dy) {
+      auto it = index_of.find(voxel_key::pack(region[i]->x + dx, region[i]->y + dy, 0));
+      if ((dx || dy) && it != index_of.end()) visit(it->second);
+    }
+  }
+}
+
+// Each cell's distance to the nearest cell outside its region, in cells.
+std::vector<float> depthsInRegion(const std::vector<const FootprintCell*>& region,
+                                  const std::unordered_map<uint64_t, int>& index_of) {
+  std::unordered_map<uint64_t, Eigen::Vector2f> outside;
+  auto inRegion = [&](int64_t x, int64_t y) {
+    return index_of.count(voxel_key::pack(x, y, 0)) > 0;
+  };
+  for (const FootprintCell* cell : region) {
+    for (int64_t dx = -1; dx <= 1; ++dx) {
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        const int64_t x = cell->x + dx, y = cell->y + dy;
+        if (inRegion(x, y) || outside.count(voxel_key::pack(x, y, 0))) continue;
+        int neighbours_in = 0;
+        for (int64_t ex = -1; ex <= 1; ++ex) {
+          for (int64_t ey = -1; ey <= 1; ++ey) neighbours_in += inRegion(x + ex, y + ey);
+        }
+        if (neighbours_in < kHoleNeighbours)
+          outside.emplace(voxel_key::pack(x, y, 0), Eigen::Vector2f(x, y));
+      }
+    }
+  }
+  std::vector<float> depth(region.size(), std::numeric_limits<float>::infinity());
+  for (size_t i = 0; i < region.size(); ++i) {
+    const Eigen::Vector2f at(region[i]->x, region[i]->y);
+    for (const auto& [key, edge] : outside) depth[i] = std::min(depth[i], (edge - at).norm());
+  }
+  return depth;
+}
+
+// The region's objects: its cells grouped by the peak they drain to (highest first, a
+// watershed on the depths), peaks parted by a neck kept apart; groups below kMinTopCells join
+// the neighbouring group they touch most.
+std::vector<std::vector<const FootprintCell*>> splitAtNecks(
+    const std::vector<const FootprintCell*>& region) {
+  if (region.size() < 2 * kMinTopCells) return {region};
+  const std::unordered_map<uint64_t, int> index_of = indexOfCells(region);
+  const std::vector<float> depth = depthsInRegion(region, index_of);
+  std::vector<int> order(region.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return depth[a] > depth[b]; });
+  // Union-find over cells: each group's root holds its peak.
+  std::vector<int> parent(region.size(), -1);  // -1: not reached yet
+  std::vector<float> peak(region.size(), 0.0f);
+  auto root = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  auto forNeighbours = [&](int i, auto&& visit) {
+    forNeighboursInRegion(region, index_of, i, visit);
+  };
+  std::vector<int> roots;
+  for (int i : order) {
+    roots.clear();
+    int uphill = -1;  // the deepest neighbour reached: the cell drains to its peak
+    forNeighbours(i, [&](int j) {
+      if (parent[j] < 0) return;
+      roots.push_back(root(j));
+      if (uphill < 0 || depth[j] > depth[uphill]) uphill = j;
+    });
+    if (roots.empty()) {
+      parent[i] = i;
+      peak[i] = depth[i];
+      continue;
+    }
+    std::sort(roots.begin(), roots.end(),
+              [&](int a, int b) { return peak[a] != peak[b] ? peak[a] > peak[b] : a < b; });
+    roots.erase(std::unique(roots.begin(), roots.end()), roots.end());
+    for (size_t k = 1; k < roots.size(); ++k) {
+      const float smaller_peak = peak[roots[k]];
+      if (smaller_peak < kMinPeakDepth || depth[i] >= kNeckRatio * smaller_peak)
+        parent[roots[k]] = roots[0];
+    }
+    parent[i] = root(uphill);
+  }
+  std::map<int, std::vector<int>> groups;
+  for (size_t i = 0; i < region.size(); ++i) groups[root(static_cast<int>(i))].push_back(i);
+  while (groups.size() > 1) {
+    auto smallest = std::min_element(groups.begin(), groups.end(), [](auto& a, auto& b) {
+      return a.second.size() < b.second.size();
+    });
+    if (smallest->second.size() >= kMinTopCells) break;
+    std::map<int, int> touching;
+    for (int i : smallest->second) {
+      forNeighbours(i, [&](int j) {
+        if (root(j) != smallest->first) ++touching[root(j)];
+      });
+    }
+    const int into = touching.empty()
+                         ? -1
+                         : std::max_element(touching.begin(), touching.end(), [](auto& a, auto& b) {
+                             return a.second < b.second;
+                           })->first;
+    if (into < 0) {  // an island: no group to join, it stays apart and fails kMinTopCells
+      break;
+    }
+    for (int i : smallest->second) {
+      parent[i] = into;
+      groups[into].push_back(i);
+    }
+    parent[smallest->first] = into;
+    groups.erase(smallest);
+  }
+  std::vector<std::vector<const FootprintCell*>> objects;
+  for (const auto& [group_root, members] : groups) {
+    objects.emplace_back();
+    for (int i : members) objects.back().push_back(region[i]);
+  }
+  return objects;
+}
+
 // The level top faces of the cluster's objects: regions of the height grid of at least
 // kMinTopCells cells, level and filled, not lying within the outline of a higher region (the
 // inside of a cup or bowl seen within its rim).
@@ -377,6 +536,27 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
       }
     }
   }
+  // Regions of several objects of the same height parted at their necks, when they nearly fill
+  // their outline (two objects side by side); not a top face with a bite out of it: the top of
+  // a lower box seen around one standing on it narrows around the upper box's corner (OSD
+  // learn20, learn22).
+  auto nearlyConvex = [](const std::vector<const FootprintCell*>& region) {
+    std::vector<Eigen::Vector2f> centres;
+    for (const FootprintCell* cell : region) centres.emplace_back(cell->x + 0.5f, cell->y + 0.5f);
+    const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(centres));
+    return hull.size() >= 3 && region.size() >= kNeckSplitFill * filledCells(hull);
+  };
+  std::vector<std::vector<const FootprintCell*>> objects;
+  for (const auto& region : regions) {
+    const bool two_side_by_side = region.size() >= 2 * kMinTopCells && nearlyConvex(region);
+    for (auto& object : two_side_by_side ? splitAtNecks(region)
+                                         : std::vector<std::vector<const FootprintCell*>>{region}) {
+      for (const FootprintCell* cell : object)
+        cells.at(voxel_key::pack(cell->x, cell->y, 0)).region = static_cast<int>(objects.size());
+      objects.push_back(std::move(object));
+    }
+  }
+  regions = std::move(objects);
   // Outlines of the larger regions (cell centres), for the fill and the nesting tests.
   std::vector<std::vector<Eigen::Vector2f>> outlines(regions.size());
   std::vector<float> top(regions.size()), bottom(regions.size());
@@ -391,26 +571,13 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     }
     if (regions[r].size() >= kMinTopCells) outlines[r] = convexHull2d(std::move(centres));
   }
-  auto polygonArea = [](const std::vector<Eigen::Vector2f>& hull, float& perimeter) {
-    float area = 0.0f;
-    perimeter = 0.0f;
-    for (size_t i = 0; i < hull.size(); ++i) {
-      const Eigen::Vector2f &a = hull[i], &b = hull[(i + 1) % hull.size()];
-      area += 0.5f * (a.x() * b.y() - b.x() * a.y());
-      perimeter += (b - a).norm();
-    }
-    return area;
-  };
   std::vector<TopFace> faces;
   std::vector<int> face_of_region(regions.size(), -1), region_of_face;
   for (size_t r = 0; r < regions.size(); ++r) {
     if (outlines[r].size() < 3 || top[r] - bottom[r] > kTopFaceSpread ||
         widthOf(outlines[r]) + 1.0f < kTopFaceWidth)
       continue;
-    // Cells a filled convex region of this outline holds (area, half the boundary cells, 1).
-    float perimeter = 0.0f;
-    const float area = polygonArea(outlines[r], perimeter);
-    if (regions[r].size() < kTopFaceFill * (area + 0.5f * perimeter + 1.0f)) continue;
+    if (regions[r].size() < kTopFaceFill * filledCells(outlines[r])) continue;
     auto withinHigher = [&](size_t higher) {
       if (higher == r || outlines[higher].size() < 3 || top[higher] <= top[r] + kTopFaceStep)
         return false;
@@ -499,9 +666,12 @@ std::vector<int> underWhichTop(const std::vector<TopFace>& faces, const std::vec
 
 // The part's objects standing side by side, one per top face; the part itself when it has fewer
 // than two top faces, or when a face would hold fewer than min_points (that face is dropped).
-std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points) {
+// `own_top_faces`: whether each object returned lies under a level top face of its own.
+std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points,
+                                         bool& own_top_faces) {
+  own_top_faces = false;
   const Cloud& cloud = *part;
-  if (static_cast<int>(cloud.size()) < 2 * min_points) return {part};
+  if (static_cast<int>(cloud.size()) < min_points) return {part};
   const TableProjection onTable(table);
   std::vector<float> heights(cloud.size());
   std::vector<Eigen::Vector2f> footprints(cloud.size());
@@ -521,6 +691,7 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
     if (*smallest >= min_points) break;
     faces.erase(faces.begin() + (smallest - size.begin()));
   }
+  own_top_faces = !faces.empty();
   if (faces.size() < 2) return {part};
   std::vector<std::vector<int>> indices(faces.size());
   for (size_t i = 0; i < face_of.size(); ++i) indices[face_of[i]].push_back(static_cast<int>(i));
@@ -604,13 +775,15 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     out.emplace_back(cluster, -1);
   } else {
     // Stacked objects part at concave seams, then objects side by side in each part under
-    // their own top faces (LCCP joins touching objects across a front face they share).
-    int group = 0;
+    // their own top faces (LCCP joins touching objects across a front face they share). Parts
+    // each under a level top face of its own are separate objects, all in one group: the joins
+    // took a lower neighbour seen over a taller one's top edge for its inside, or a neighbour
+    // for a hidden middle (issue 15). A cup's wall (a rim ring), a handle or a box's side cut
+    // off by noise has no top face of its own and may still be joined.
     for (const CloudPtr& part : splitStack(cluster, table, params, min_points)) {
-      const std::vector<CloudPtr> objects = splitUnderTopFaces(part, table, min_points);
-      for (const CloudPtr& object : objects)
-        out.emplace_back(object, objects.size() > 1 ? group : -1);
-      ++group;
+      bool own_top_faces = false;
+      for (const CloudPtr& object : splitUnderTopFaces(part, table, min_points, own_top_faces))
+        out.emplace_back(object, own_top_faces ? 0 : -1);
     }
   }
   return largestFirst(std::move(out), side_by_side);

@@ -27,8 +27,8 @@ std::vector<CloudPtr> largestFirst(std::vector<std::pair<CloudPtr, int>> parts,
 // (mayHoldAStack) are kept apart where one rises above the other (stacked or leaning on it,
 // heights from `table`); objects side by side where each has a level top face of its own
 // (touching boxes and cans, issue 15). `side_by_side`, when given, gets one entry per part: parts
-// parted under their own top faces share a number >= 0 (the joins of cluster_join.h must not
-// join them again), other parts -1.
+// each under a level top face of its own share a number >= 0 (separate objects: the joins of
+// cluster_join.h must not join them again), other parts -1.
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params,
                                           std::vector<int>* side_by_side = nullptr);
