@@ -174,14 +174,16 @@ void checkChainParameters(ros::NodeHandle& private_node) {
     const std::string full = private_node.resolveName(description->name);
     const auto type = value.getType();
     const bool integer = description->type == "int";
-    double number = 0.0;
-    if (type == XmlRpc::XmlRpcValue::TypeInt) {
-      number = static_cast<int>(value);
-    } else if (type == XmlRpc::XmlRpcValue::TypeDouble && !integer) {
-      number = static_cast<double>(value);
-    } else {
-      errors += (errors.empty() ? "" : "; ") + full + " = " + value.toXml() + " is not " +
-                (integer ? "an integer" : "a number");
+    if (type != XmlRpc::XmlRpcValue::TypeInt && type != XmlRpc::XmlRpcValue::TypeDouble) {
+      errors += (errors.empty() ? "" : "; ") + full + " = " + value.toXml() + " is not a number";
+      continue;
+    }
+    const double number =
+        type == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(value) : static_cast<double>(value);
+    std::ostringstream why;
+    why << full << " = " << number;
+    if (integer && type != XmlRpc::XmlRpcValue::TypeInt) {
+      errors += (errors.empty() ? "" : "; ") + why.str() + " is not an integer";
       continue;
     }
     boost::any min, max;
@@ -191,8 +193,7 @@ void checkChainParameters(ros::NodeHandle& private_node) {
     anyToNumber(min, low);
     anyToNumber(max, high);
     if (number < low || number > high) {
-      std::ostringstream why;
-      why << full << " = " << number << " is outside [" << low << ", " << high << "]";
+      why << " is outside [" << low << ", " << high << "]";
       errors += (errors.empty() ? "" : "; ") + why.str();
     }
   }
