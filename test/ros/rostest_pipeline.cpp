@@ -4,6 +4,8 @@
 // truth on /ground_truth (tabletop_shapes/Objects, same stamp as the cloud).
 #include "rostest_common.h"
 
+#include "tabletop_shapes/ros/frame_admission.h"
+
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -113,9 +115,15 @@ class PipelineTest : public ::testing::Test {
   }
 
   void onObjects(const ObjectsConstPtr& msg) {
+    const ros::WallTime now = ros::WallTime::now();
     std::lock_guard<std::mutex> lock(mutex_);
+    all_answers_.push_back(msg);
+    all_answer_wall_times_.push_back(now);
+    // Frames refused at Preprocess's admission (a looped bag is faster than the chain) are
+    // answered at once; the tests look at the frames the chain worked on.
+    if (tabletop_shapes::bridge::isChainBusyReason(msg->reason)) return;
     objects_.push_back(msg);
-    objects_wall_times_.push_back(ros::WallTime::now());
+    objects_wall_times_.push_back(now);
   }
   void onTruth(const ObjectsConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -263,6 +271,9 @@ class PipelineTest : public ::testing::Test {
   std::mutex mutex_;
   std::vector<ObjectsConstPtr> objects_;
   std::vector<ros::WallTime> objects_wall_times_;
+  // Every objects message, busy answers included, and when each came.
+  std::vector<ObjectsConstPtr> all_answers_;
+  std::vector<ros::WallTime> all_answer_wall_times_;
   std::map<ros::Time, ObjectsConstPtr> truth_;
   std::vector<visualization_msgs::MarkerArrayConstPtr> markers_;
   std::map<std::string, std::map<std::string, std::string>> diagnostics_;
@@ -921,8 +932,10 @@ TEST_F(PipelineTest, EveryFrameIsAnsweredOrCountedAsDropped) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     std::map<ros::Time, int> answers;
-    for (size_t i = 0; i < objects_.size(); ++i) {
-      const Objects& objects = *objects_[i];
+    for (size_t i = 0; i < all_answers_.size(); ++i) {
+      const Objects& objects = *all_answers_[i];
+      const double latency_ms =
+          (all_answer_wall_times_[i].toSec() - objects.header.stamp.toSec()) * 1e3;
       if (std::find(stamps.begin(), stamps.end(), objects.header.stamp) == stamps.end()) continue;
       ++answers[objects.header.stamp];
       ++answered;
@@ -931,12 +944,12 @@ TEST_F(PipelineTest, EveryFrameIsAnsweredOrCountedAsDropped) {
         EXPECT_TRUE(objects.table_found);
         EXPECT_EQ(objectCount(objects), static_cast<size_t>(privateParam("expected_objects", 4)))
             << describe(objects);
-        result_ms.push_back((objects_wall_times_[i].toSec() - objects.header.stamp.toSec()) * 1e3);
+        result_ms.push_back(latency_ms);
       } else {
         EXPECT_EQ(objects.reason.rfind("skipped: chain busy (", 0), 0u) << objects.reason;
         EXPECT_FALSE(objects.table_found);
         ++answered_busy;
-        busy_ms.push_back((objects_wall_times_[i].toSec() - objects.header.stamp.toSec()) * 1e3);
+        busy_ms.push_back(latency_ms);
       }
     }
     for (const auto& [stamp, count] : answers) EXPECT_EQ(count, 1) << "stamp " << stamp;
@@ -966,9 +979,12 @@ TEST_F(PipelineTest, EveryFrameIsAnsweredOrCountedAsDropped) {
       "answers median %.0f ms, max %.0f ms\n",
       alone_median_ms, median_ms, result_ms.back(), busy_median_ms,
       busy_ms.empty() ? NAN : busy_ms.back());
-  // No backlog: a frame waits at most for the frame in flight before it, plus a frame period.
-  // (Without admission this was 2-3x the latency alone, p50 324 ms against ~130 ms.)
-  EXPECT_LE(median_ms, 2.0 * alone_median_ms + 67.0);
+  // No backlog: a frame waits at most for the frame in flight before it, plus a frame period,
+  // plus its trip to Preprocess under the 30 Hz flow of 10 MB clouds (the busy answers' own
+  // latency, which the machine's load sets). Without admission the answered frames waited
+  // behind others at every queue: p50 324-849 ms against ~115-137 ms alone in the soaks.
+  ASSERT_FALSE(busy_ms.empty());
+  EXPECT_LE(median_ms, 2.0 * alone_median_ms + busy_median_ms + 67.0);
 }
 
 // TF jumping (issue 16): world -> base_link, a robot's pose, jumps 3 m and 90 deg about up
