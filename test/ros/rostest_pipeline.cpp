@@ -979,12 +979,13 @@ TEST_F(PipelineTest, EveryFrameIsAnsweredOrCountedAsDropped) {
       "answers median %.0f ms, max %.0f ms\n",
       alone_median_ms, median_ms, result_ms.back(), busy_median_ms,
       busy_ms.empty() ? NAN : busy_ms.back());
-  // No backlog: a frame waits at most for the frame in flight before it, plus a frame period,
-  // plus its trip to Preprocess under the 30 Hz flow of 10 MB clouds (the busy answers' own
-  // latency, which the machine's load sets). Without admission the answered frames waited
-  // behind others at every queue: p50 324-849 ms against ~115-137 ms alone in the soaks.
+  // No backlog: a frame's latency is its trip to Preprocess under the 30 Hz flow of 10 MB
+  // clouds (the busy answers' own latency, set by the machine's load) plus about one frame's
+  // work (sent alone, measured minutes before at another load: hence 3x) and a frame period
+  // of waiting. Without admission the answered frames waited behind others at every queue:
+  // p50 324-849 ms against ~115-137 ms alone in the soaks.
   ASSERT_FALSE(busy_ms.empty());
-  EXPECT_LE(median_ms, 2.0 * alone_median_ms + busy_median_ms + 67.0);
+  EXPECT_LE(median_ms, busy_median_ms + 3.0 * alone_median_ms + 100.0);
 }
 
 // TF jumping (issue 16): world -> base_link, a robot's pose, jumps 3 m and 90 deg about up
