@@ -90,7 +90,7 @@ fuzz:
 # end, frames in / out / dropped per stage, latency p50 / p99 / max.
 SOAK_SECONDS ?= 600
 soak: build
-	@scripts/soak $(SOAK_SECONDS)
+	@scripts/soak $(SOAK_SECONDS) $(SOAK_ARGS)
 
 # The paper's Tables 2-3 / Fig. 12 on rendered scenes and segmentation scores on real OSD
 # scenes (../shared/data when present, else the copies in test/data); plots in benchmark-output/.

@@ -6,6 +6,7 @@
 #include <ros/subscription_callback_helper.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 
 namespace tabletop_shapes {
@@ -64,15 +65,27 @@ class BoundedReader {
 using CloudCallbackParameter = const boost::shared_ptr<const InputCloud>&;
 
 // roscpp calls deserialize() only for a message that did not arrive as an InputCloud object
-// (the pointer path skips it), on the subscriber's callback queue; a null result drops the
-// message before the callback.
+// (the pointer path skips it), on the subscriber's callback queue right before call(); a null
+// result drops the message before the callback.
 class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackParameter> {
  public:
   InputCloudHelper(const std::function<void(CloudCallbackParameter)>& on_cloud,
-                   const InvalidCloudCallback& on_invalid, uint64_t max_points)
+                   const InvalidCloudCallback& on_invalid, uint64_t max_points,
+                   const AdmitCallback& admit)
       : ros::SubscriptionCallbackHelperT<CloudCallbackParameter>(on_cloud),
         on_invalid_(on_invalid),
-        max_points_(max_points) {}
+        max_points_(max_points),
+        admit_(admit) {}
+
+  // A cloud read by deserialize() was admitted there; one handed over by pointer is asked here.
+  void call(ros::SubscriptionCallbackHelperCallParams& params) override {
+    const void* cloud = params.event.getMessage().get();
+    if (cloud != read_here_ && admit_) {
+      const auto* input = static_cast<const InputCloud*>(cloud);
+      if (!admit_(pcl_conversions::fromPCL(input->header))) return;
+    }
+    ros::SubscriptionCallbackHelperT<CloudCallbackParameter>::call(params);
+  }
 
   ros::VoidConstPtr deserialize(
       const ros::SubscriptionCallbackHelperDeserializeParams& params) override {
@@ -91,14 +104,20 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
       on_invalid_(layout.header, invalid);
       return {};
     }
+    // Before the points are read: a refused frame costs no more than its header.
+    if (admit_ && !admit_(layout.header)) return {};
     auto cloud = boost::make_shared<InputCloud>();
     readInputCloud(layout, points, *cloud);
+    read_here_ = cloud.get();
     return cloud;
   }
 
  private:
   InvalidCloudCallback on_invalid_;
   uint64_t max_points_;
+  AdmitCallback admit_;
+  // The last cloud deserialize() read and admitted (same callback thread as call()).
+  std::atomic<const void*> read_here_{nullptr};
 };
 
 }  // namespace
@@ -218,11 +237,11 @@ void readInputCloud(const sensor_msgs::PointCloud2& msg, const uint8_t* points, 
 ros::Subscriber subscribeInputCloud(
     ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
     const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const InvalidCloudCallback& on_invalid, uint64_t max_points) {
+    const InvalidCloudCallback& on_invalid, uint64_t max_points, const AdmitCallback& admit) {
   ros::SubscribeOptions options;
   // Topic type and checksum are PointCloud2's (pcl_ros's traits); the helper does the rest.
   options.init<InputCloud>(topic, queue_size, on_cloud);
-  options.helper = boost::make_shared<InputCloudHelper>(on_cloud, on_invalid, max_points);
+  options.helper = boost::make_shared<InputCloudHelper>(on_cloud, on_invalid, max_points, admit);
   return node.subscribe(options);
 }
 

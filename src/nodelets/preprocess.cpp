@@ -7,13 +7,20 @@
 //             view (tabletop_shapes/View, same stamp): the bounds of the input's valid pixels,
 //             which ShapeEstimation needs to flag objects cut by the image border (the
 //             voxel grid leaves an unorganised cloud)
-//             objects (tabletop_shapes/Objects) for a frame skipped here, with the reason
-// Parameters: cfg/Preprocess.cfg (dynamic_reconfigure); ~queue_size (int, 1);
+//             objects (tabletop_shapes/Objects) for a frame skipped here, with the reason;
+//             also for a frame refused because the chain is busy ("skipped: chain busy ...")
+// Admission: a frame is taken in only while fewer than ~max_frames_in_flight frames are
+//   between here and the chain's `objects` output, which this nodelet also subscribes to
+//   (the answers' stamps free their places; ros/frame_admission.h). Others are answered at
+//   once on `objects` and counted as `frames skipped: chain busy` on /diagnostics.
+// Parameters: cfg/Preprocess.cfg (dynamic_reconfigure, with max_frames_in_flight and
+//             in_flight_timeout); ~queue_size (int, 1);
 //             ~max_points (int, 4000000): larger clouds are skipped with a warning.
 #include "tabletop_shapes/core/pcd_reader.h"
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/ros/cloud_input.h"
 #include "tabletop_shapes/ros/conversions.h"
+#include "tabletop_shapes/ros/frame_admission.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/PreprocessConfig.h"
@@ -24,8 +31,10 @@
 #include <pcl_ros/point_cloud.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <iomanip>
 #include <memory>
 #include <mutex>
+#include <sstream>
 
 namespace tabletop_shapes {
 
@@ -38,6 +47,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
     // loader destroys a nodelet whose onInit throws after those queues, and a live timer or
     // subscriber then crashes the process before the refusal is printed.
     bridge::seedCoreDefaults(private_node, {"preprocess"});
+    bridge::checkChainParameters<PreprocessConfig>(private_node);
     monitor_ = std::make_unique<bridge::StageMonitor>(node, getName());
     reconfigure_ = std::make_unique<dynamic_reconfigure::Server<PreprocessConfig>>(
         reconfigure_mutex_, private_node);
@@ -48,6 +58,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
         NODELET_ERROR("rejected parameters: %s", error.c_str());
         return;
       }
+      admission_.setLimits(static_cast<size_t>(config.max_frames_in_flight),
+                           config.in_flight_timeout);
       std::lock_guard<std::mutex> lock(params_mutex_);
       params_ = params.preprocess;
     });
@@ -66,8 +78,43 @@ class PreprocessNodelet : public nodelet::Nodelet {
         [this](const std_msgs::Header& header, const std::string& invalid) {
           skip(header, invalid);
         },
-        max_points_);
+        max_points_, [this](const std_msgs::Header& header) { return admit(header); });
     monitor_->expectInput<sensor_msgs::PointCloud2>(subscriber_);
+    // The chain's answers free places in flight: on the multi-threaded handle, so that an
+    // answer is not held up behind a frame this nodelet is preprocessing. By pointer in the
+    // same manager (no copy); the queue is deep because missing one costs the timeout.
+    answers_subscriber_ =
+        getMTNodeHandle().subscribe("objects", 50, &PreprocessNodelet::onAnswer, this);
+  }
+
+  void onAnswer(const ObjectsConstPtr& objects) {
+    // A busy answer is for a frame never admitted, though its stamp may repeat one in flight.
+    if (bridge::isChainBusyReason(objects->reason)) return;
+    admission_.answered(bridge::FrameAdmission::stampMicroseconds(objects->header.stamp.toNSec()));
+  }
+
+  // Admits the frame while the chain has room, else answers it as busy. A frame in flight
+  // whose answer never came is given up here, with a throttled warning. Called before a
+  // PointCloud2's points are read, and before onCloud for a cloud handed over by pointer.
+  bool admit(const std_msgs::Header& header) {
+    const bridge::FrameAdmission::Decision decision =
+        admission_.admit(bridge::FrameAdmission::stampMicroseconds(header.stamp.toNSec()),
+                         bridge::FrameAdmission::Clock::now());
+    if (!decision.timed_out_stamps_us.empty()) {
+      std::ostringstream text;
+      text << decision.timed_out_stamps_us.size() << " frame(s) in flight had no objects message "
+           << "within in_flight_timeout (the last stamped "
+           << decision.timed_out_stamps_us.back() / 1000000 << "." << std::setw(6)
+           << std::setfill('0') << decision.timed_out_stamps_us.back() % 1000000
+           << "): a later stage died or dropped it; admitting frames again";
+      monitor_->log({bridge::Problem::Level::Warn, text.str(), "in_flight_timeout"});
+    }
+    if (decision.admitted) return true;
+    monitor_->countSequence(header.seq);  // numbered too: a refused frame is no gap
+    monitor_->frameSkippedBusy();
+    skipped_publisher_.publish(
+        bridge::skippedFrameObjects(header, bridge::chainBusyReason(decision.in_flight)));
+    return false;
   }
 
   // A frame without output: reported, and answered on `objects` so that a consumer waiting
@@ -122,8 +169,10 @@ class PreprocessNodelet : public nodelet::Nodelet {
   Preprocessor preprocessor_;  // keeps its buffers between frames
   uint64_t max_points_ = kDefaultMaxPoints;
   uint32_t published_ = 0;  // frames published: the seq of the next stage's input
+  // Limits set by the reconfigure callback, which runs before the first frame.
+  bridge::FrameAdmission admission_{1, 2.0};
   ros::Publisher publisher_, view_publisher_, skipped_publisher_;
-  ros::Subscriber subscriber_;
+  ros::Subscriber subscriber_, answers_subscriber_;
 };
 
 }  // namespace tabletop_shapes

@@ -150,6 +150,12 @@ void StageMonitor::frameSkipped(const std::string& reason, const Problem& proble
   last_skip_reason_ = reason;
 }
 
+void StageMonitor::frameSkippedBusy() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  input_seen_ = true;
+  ++skipped_busy_;
+}
+
 void StageMonitor::frameWithoutResult(const std::string& reason, const Problem& problem) {
   log(problem);
   std::lock_guard<std::mutex> lock(mutex_);
@@ -261,6 +267,7 @@ void StageMonitor::publish(const ros::SteadyTimerEvent&) {
     const double mean_ms = window_frames_ > 0 ? window_sum_ms_ / window_frames_ : 0.0;
     status.values = {keyValue("frames", frames_),
                      keyValue("frames skipped", skipped_),
+                     keyValue("frames skipped: chain busy", skipped_busy_),
                      keyValue("frames in last period", window_frames_),
                      keyValue("last frame [ms]", last_ms_),
                      keyValue("mean frame in last period [ms]", mean_ms),

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """scripts/benchmark_speed's arithmetic on known per-frame records: latency per stage and end to
-end, frames lost per stage, objects per answer (ours: the Objects message's size; pcl_ros: its
+end, frames lost per stage, frames answered with a result / refused as busy / lost, objects per answer (ours: the Objects message's size; pcl_ros: its
 cluster messages, stamped input + i ms), RSS after the warm-up against the end, and a probe
 line cut short by a stopped manager. No ROS needed.
 
@@ -32,7 +32,7 @@ class FakeRss:
 def write_probe(lines):
     handle, path = tempfile.mkstemp(suffix=".csv")
     with os.fdopen(handle, "w") as f:
-        f.write("topic,stamp_us,arrival_us,size\n" + "".join(line + "\n" for line in lines))
+        f.write("topic,stamp_us,arrival_us,size,answer\n" + "".join(line + "\n" for line in lines))
     return path
 
 
@@ -56,9 +56,9 @@ class Summary(unittest.TestCase):
                                 (2000000, (12000,)), (3000000, ()),
                                 (4000000, (20000, 45000, 47000, 60000, 100000))):
             for (topic, _), delay in zip(bench.OURS_TOPICS, arrivals):
-                size = 4 if topic == "objects" else 1000
-                lines.append(f"{NS}/{topic},{stamp},{stamp + delay},{size}")
-        lines.append(f"{NS}/objects,1000000,1090000,3")  # a later duplicate: the first counts
+                size, answer = (4, "result") if topic == "objects" else (1000, "")
+                lines.append(f"{NS}/{topic},{stamp},{stamp + delay},{size},{answer}")
+        lines.append(f"{NS}/objects,1000000,1090000,3,result")  # a later duplicate: the first counts
         lines.append(f"{NS}/clusters,5000000")  # cut short when the manager stopped
         first = bench.read_probe(self.probe(lines), NS)
         rss = FakeRss([(900000, 100.0), (1500000, 120.0), (4500000, 121.0)])
@@ -68,6 +68,7 @@ class Summary(unittest.TestCase):
                             1200000, cpu, rss)
         self.assertEqual(r["frames"], 4)
         self.assertEqual(r["dropped"], 2)
+        self.assertEqual(r["answers"], {"result": 2, "busy": 0, "reason": 0, "lost": 2})
         self.assertEqual(r["e2e"], [50.0, 100.0])
         self.assertEqual(r["lost"], {"preprocessed": 1, "table": 1, "objects_cloud": 0,
                                      "clusters": 0, "objects": 0})
@@ -83,15 +84,42 @@ class Summary(unittest.TestCase):
         self.assertAlmostEqual(r["cpu_ms"], 50.0)
         self.assertEqual((r["rss_warm"], r["rss_end"], r["rss_peak"]), (120.0, 121.0, 130.0))
 
+    def test_busy_answers_are_counted_apart_from_the_latency_and_the_losses(self):
+        # Frame 1 passes every stage; frame 2 is refused at Preprocess (answered at once, 1 ms
+        # after its stamp); frame 3 is skipped by TableSegmentation (no transform), answered
+        # with that reason; frame 4 is lost after Preprocess.
+        lines = []
+        for stamp, arrivals, answer in ((1000000, (10000, 25000, 26000, 30000, 50000), "result"),
+                                        (2000000, (None, None, None, None, 1000), "busy"),
+                                        (3000000, (10000, None, None, None, 40000), "reason"),
+                                        (4000000, (10000,), "")):
+            for (topic, _), delay in zip(bench.OURS_TOPICS, arrivals):
+                if delay is not None:
+                    size = 0 if topic == "objects" else 1000
+                    lines.append(f"{NS}/{topic},{stamp},{stamp + delay},{size},"
+                                 f"{answer if topic == 'objects' else ''}")
+        first = bench.read_probe(self.probe(lines), NS)
+        r = bench.summarise("tabletop_shapes", {"name": "VGA 4 obj", "key": "vga4"}, 30,
+                            [1000000, 2000000, 3000000, 4000000], first, bench.OURS_TOPICS,
+                            1000000, {"seconds": 0.1, "frames": 4, "peak": 100.0},
+                            FakeRss([(0, 100.0)]))
+        self.assertEqual(r["answers"], {"result": 1, "busy": 1, "reason": 1, "lost": 1})
+        self.assertEqual(r["dropped"], 1)
+        self.assertEqual(r["e2e"], [50.0, 40.0])  # the busy frame's 1 ms is left out
+        # Three frames taken in, all three preprocessed; two left TableSegmentation's queue
+        # without its table (frame 3 skipped there, frame 4 lost), frame 3 still answered.
+        self.assertEqual(r["lost"], {"preprocessed": 0, "table": 2, "objects_cloud": 0,
+                                     "clusters": 0, "objects": 0})
+
     def test_pcl_ros_counts_its_cluster_messages(self):
         topics = bench.PCL_TOPICS
-        lines = [f"/pcl_ros_chain/voxel_grid/output,1000000,1020000,50000"]
+        lines = [f"/pcl_ros_chain/voxel_grid/output,1000000,1020000,50000,"]
         # Three clusters of frame 1 (stamps + 0, 1, 2 ms), one of frame 2.
         for i in range(3):
             lines.append(f"/pcl_ros_chain/cluster/output,{1000000 + 1000 * i},"
-                         f"{1060000 + 100 * i},{300 + i}")
-        lines.append("/pcl_ros_chain/voxel_grid/output,2000000,2030000,50000")
-        lines.append("/pcl_ros_chain/cluster/output,2000000,2080000,700")
+                         f"{1060000 + 100 * i},{300 + i},")
+        lines.append("/pcl_ros_chain/voxel_grid/output,2000000,2030000,50000,")
+        lines.append("/pcl_ros_chain/cluster/output,2000000,2080000,700,")
         path = self.probe(lines)
         stamps = [1000000, 2000000]
         counts = bench.clusters_per_frame(path, "/pcl_ros_chain/cluster/output", stamps)

@@ -133,6 +133,14 @@ class LaunchChecks(unittest.TestCase):
                                              stderr=subprocess.DEVNULL))
         cases = [("Preprocess", "preprocess", "_leaf_size:=0.5",
                   "/preprocess/leaf_size: preprocess.leaf_size = 0.5 is outside [0, 0.1]"),
+                 # the chain's own admission parameters, checked against the cfg's bounds (a
+                 # node name each: private parameters stay on the master between the cases)
+                 ("Preprocess", "preprocess_a", "_max_frames_in_flight:=17",
+                  "/preprocess_a/max_frames_in_flight = 17 is outside [0, 16]"),
+                 ("Preprocess", "preprocess_b", "_in_flight_timeout:=0.01",
+                  "/preprocess_b/in_flight_timeout = 0.01 is outside [0.1, 60]"),
+                 ("Preprocess", "preprocess_c", "_max_frames_in_flight:=1.5",
+                  "/preprocess_c/max_frames_in_flight = 1.5 is not an integer"),
                  ("TableSegmentation", "table_segmentation", "_min_inliers:=2",
                   "/table_segmentation/min_inliers: table.min_inliers = 2 is outside [3, 1e+07]"),
                  ("Clustering", "clustering", "_min_size:=0",
@@ -140,7 +148,7 @@ class LaunchChecks(unittest.TestCase):
                  ("ShapeEstimation", "shape_estimation", "_threshold:=-1",
                   "/shape_estimation/threshold: predictor.threshold = -1 is outside [0, 4]")]
         for nodelet, name, argument, message in cases:
-            with self.subTest(nodelet=nodelet):
+            with self.subTest(nodelet=nodelet, argument=argument):
                 proc = subprocess.run(["rosrun", "nodelet", "nodelet", "standalone",
                                        "tabletop_shapes/" + nodelet, "__name:=" + name, argument],
                                       env=self.env, text=True, capture_output=True, timeout=60)

@@ -47,13 +47,17 @@ void readInputCloud(const sensor_msgs::PointCloud2& layout, const uint8_t* point
 // The header of a refused cloud (default-constructed when even it was unreadable), and why.
 using InvalidCloudCallback = std::function<void(const std_msgs::Header&, const std::string&)>;
 
-// `on_cloud` gets every valid cloud, `on_invalid` the reason a cloud was refused; both run on
-// the node's callback queue. A cloud handed over by pointer is not checked here: its size
-// against max_points is the caller's to check.
+// Whether a valid cloud (its header) is taken in; false: the callback has answered it itself.
+using AdmitCallback = std::function<bool(const std_msgs::Header&)>;
+
+// `on_cloud` gets every valid cloud `admit` takes in (all when `admit` is empty), `on_invalid`
+// the reason a cloud was refused; all three run on the node's callback queue. A PointCloud2 is
+// admitted before its points are read (a refusal costs its header only). A cloud handed over
+// by pointer is not checked here: its size against max_points is the caller's to check.
 ros::Subscriber subscribeInputCloud(
     ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
     const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const InvalidCloudCallback& on_invalid, uint64_t max_points);
+    const InvalidCloudCallback& on_invalid, uint64_t max_points, const AdmitCallback& admit = {});
 
 }  // namespace bridge
 }  // namespace tabletop_shapes

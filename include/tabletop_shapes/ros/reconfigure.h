@@ -10,6 +10,7 @@
 #include <ros/node_handle.h>
 
 #include <algorithm>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -30,6 +31,14 @@ inline std::string stageOfParameter(const std::vector<std::string>& stages,
     }
   });
   return found;
+}
+
+// Parameters of the ROS chain itself that no core stage has (Preprocess's admission of frames
+// in flight, ros/frame_admission.h): the nodelet reads them from its Config; applyConfig and
+// the check against the core's table skip them, checkChainParameters checks their start-up
+// values.
+inline bool isChainParameter(const std::string& name) {
+  return name == "max_frames_in_flight" || name == "in_flight_timeout";
 }
 
 // A generated Config value (int, double or bool) as a number; false for other types.
@@ -56,6 +65,7 @@ bool applyConfig(const Config& config, const std::vector<std::string>& stages,
     boost::any value;
     description->getValue(config, value);
     double number = 0.0;
+    if (isChainParameter(description->name)) continue;
     const std::string stage = stageOfParameter(stages, description->name);
     std::string why;
     if (stage.empty() || !anyToNumber(value, number)) {
@@ -145,6 +155,49 @@ inline void seedCoreDefaults(ros::NodeHandle& private_node,
   if (errors.empty() && !validateParams(given, contradiction)) fail(contradiction);
   if (!errors.empty()) {
     // Logged here too: the loader's own message does not name the cause.
+    ROS_FATAL_STREAM("refused start-up parameters: " << errors);
+    throw std::invalid_argument(errors);
+  }
+}
+
+// The chain parameters of `Config` (isChainParameter) set on the parameter server before
+// start, against the cfg's bounds: dynamic_reconfigure would clamp an out-of-range value
+// silently. Throws std::invalid_argument naming each value refused (the load fails), as
+// seedCoreDefaults does for the core's parameters.
+template <typename Config>
+void checkChainParameters(ros::NodeHandle& private_node) {
+  std::string errors;
+  for (const auto& description : Config::__getParamDescriptions__()) {
+    if (!isChainParameter(description->name)) continue;
+    XmlRpc::XmlRpcValue value;
+    if (!private_node.getParam(description->name, value)) continue;
+    const std::string full = private_node.resolveName(description->name);
+    const auto type = value.getType();
+    const bool integer = description->type == "int";
+    if (type != XmlRpc::XmlRpcValue::TypeInt && type != XmlRpc::XmlRpcValue::TypeDouble) {
+      errors += (errors.empty() ? "" : "; ") + full + " = " + value.toXml() + " is not a number";
+      continue;
+    }
+    const double number =
+        type == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(value) : static_cast<double>(value);
+    std::ostringstream why;
+    why << full << " = " << number;
+    if (integer && type != XmlRpc::XmlRpcValue::TypeInt) {
+      errors += (errors.empty() ? "" : "; ") + why.str() + " is not an integer";
+      continue;
+    }
+    boost::any min, max;
+    description->getValue(Config::__getMin__(), min);
+    description->getValue(Config::__getMax__(), max);
+    double low = 0.0, high = 0.0;
+    anyToNumber(min, low);
+    anyToNumber(max, high);
+    if (number < low || number > high) {
+      why << " is outside [" << low << ", " << high << "]";
+      errors += (errors.empty() ? "" : "; ") + why.str();
+    }
+  }
+  if (!errors.empty()) {
     ROS_FATAL_STREAM("refused start-up parameters: " << errors);
     throw std::invalid_argument(errors);
   }

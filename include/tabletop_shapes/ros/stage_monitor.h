@@ -64,6 +64,10 @@ class StageMonitor {
   // A frame dropped without output (missing transform, invalid cloud), with the reason shown
   // in the diagnostics, and the problem logged (throttled by its key).
   void frameSkipped(const std::string& reason, const Problem& problem);
+  // A frame refused because the chain was busy (Preprocess's admission, ros/frame_admission.h):
+  // counted as `frames skipped: chain busy`, apart from `frames skipped`, and neither logged
+  // nor a WARN: at a camera's rate it is the chain working as intended.
+  void frameSkippedBusy();
   // A frame processed, but with nothing found (no table), with the reason; call frameDone too.
   void frameWithoutResult(const std::string& reason, const Problem& problem);
   // An input topic (its resolved name and ROS type): while no input at all has arrived
@@ -105,7 +109,7 @@ class StageMonitor {
   std::mutex mutex_;
   // totals
   uint64_t frames_ = 0, skipped_ = 0, without_result_ = 0, inputs_shared_ = 0, inputs_copied_ = 0;
-  uint64_t dropped_ = 0;
+  uint64_t dropped_ = 0, skipped_busy_ = 0;
   uint32_t last_seq_ = 0;
   double usual_rss_mb_ = 0.0;  // the process's RSS, slowly averaged
   double last_ms_ = 0.0;
