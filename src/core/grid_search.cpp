@@ -273,28 +273,48 @@ void GridSearch<PointT>::forEachPointInBlocks(Start&& start, Gather&& gather,
 
 template <typename PointT>
 void GridSearch<PointT>::forEachNearestK(
-    int k, const std::function<void(int, const std::vector<float>&)>& visit) const {
+    int k, const std::function<void(int, const std::vector<float>&)>& visit, bool ascending) const {
   if (k <= 0) return;
   const size_t wanted = static_cast<size_t>(k);
   std::vector<float> xs, ys, zs, block_squared, squared, nearest;
   pcl::Indices fallback_indices;
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
+  // The previous point of the same cell and its k-th distance: the k nearest of q lie within
+  // that distance plus |q - previous| (triangle inequality), a ball far smaller than the block
+  // on a surface, so the selection below runs on half the candidates.
+  const Entry* previous = nullptr;
+  float previous_kth = 0.0f;
   forEachPointInBlocks(
-      [&] { xs.clear(), ys.clear(), zs.clear(); },
+      [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
       [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
       [&](const Entry& q, float covered_squared) {
         squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
-        squared.resize(xs.size());
+        // Keeps the candidates with squared distance <= bound: when they are at least k, the
+        // k smallest of them are the k smallest of the block (exact whatever the bound).
+        auto keepWithin = [&](float bound) {
+          squared.resize(xs.size());
+          size_t kept = 0;
+          for (const float d : block_squared) {
+            squared[kept] = d;
+            kept += d <= bound;
+          }
+          squared.resize(kept);
+          return kept;
+        };
         size_t kept = 0;
-        for (const float d : block_squared) {
-          squared[kept] = d;
-          kept += d <= covered_squared;
+        if (previous) {
+          const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
+          // 1e-4 relative slack for the float rounding of the distances.
+          const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
+          if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
         }
-        squared.resize(kept);
+        if (kept < wanted) kept = keepWithin(covered_squared);
         if (kept >= wanted) {
           std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
           nearest.assign(squared.begin(), squared.begin() + wanted);
-          std::sort(nearest.begin(), nearest.end());
+          previous = &q;
+          previous_kth = std::sqrt(nearest.back());
+          if (ascending) std::sort(nearest.begin(), nearest.end());
         } else {
           // A k-d tree, not the grid's growing rings: the points that get here are the sparse
           // ones (flying pixels, edges), whose rings run through many empty cells before k

@@ -850,6 +850,43 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
   return false;  // collinear or coincident points
 }
 
+namespace {
+
+// The sum of the square roots of `squared` (in any order) but its smallest, in double, as PCL
+// sums them in ascending order, bit for bit. The order does not matter when the double sum is
+// exact: every root is a float, a multiple of 2^(e - 23) with 2^e <= the smallest nonzero root;
+// while n * the largest root < 2^(53 + e - 23), every partial sum is a multiple of that
+// quantum below 2^53 of them, hence exact. Neighbours between a few millimetres and centimetres
+// apart are always far within that; other sets are sorted (into `sorted`) and summed in order.
+double sumOfDistancesButTheNearest(const std::vector<float>& squared, std::vector<float>& sorted) {
+  if (squared.empty()) return 0.0;
+  float smallest = squared[0], largest = squared[0];
+  size_t nearest = 0;
+  float smallest_nonzero = std::numeric_limits<float>::infinity();
+  for (size_t j = 0; j < squared.size(); ++j) {
+    const float d = squared[j];
+    if (d < smallest) smallest = d, nearest = j;
+    largest = std::max(largest, d);
+    if (d > 0.0f) smallest_nonzero = std::min(smallest_nonzero, d);
+  }
+  const double n = static_cast<double>(squared.size());
+  // Squared distances: n * sqrt(largest) <= 2^29 * sqrt(smallest nonzero), squared.
+  if (!(n * n * largest <= 0x1p58 * smallest_nonzero) && largest > 0.0f) {
+    sorted.assign(squared.begin(), squared.end());
+    std::sort(sorted.begin(), sorted.end());
+    double sum = 0.0;
+    for (size_t j = 1; j < sorted.size(); ++j) sum += std::sqrt(sorted[j]);
+    return sum;
+  }
+  double sum = 0.0;
+  for (size_t j = 0; j < squared.size(); ++j) {
+    if (j != nearest) sum += std::sqrt(squared[j]);
+  }
+  return sum;
+}
+
+}  // namespace
+
 // §2.4 as pcl::StatisticalOutlierRemoval computes it (mean distance to the k nearest
 // neighbours, kept while <= mean + alpha * stddev over all points), with the neighbours from a
 // GridSearch instead of a k-d tree: the same points are kept, in a fraction of the time.
@@ -869,12 +906,14 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
   search.setInputCloud(in);
   std::vector<float> distances(in->size(), 0.0f);  // points without neighbours: 0, as PCL
   int valid_count = 0;
-  search.forEachNearestK(k + 1, [&](int i, const std::vector<float>& squared) {
-    double sum = 0.0;
-    for (size_t j = 1; j < squared.size(); ++j) sum += std::sqrt(squared[j]);  // [0]: the point
-    distances[i] = static_cast<float>(sum / k);
-    ++valid_count;
-  });
+  std::vector<float> sorted;
+  search.forEachNearestK(
+      k + 1,
+      [&](int i, const std::vector<float>& squared) {
+        distances[i] = static_cast<float>(sumOfDistancesButTheNearest(squared, sorted) / k);
+        ++valid_count;
+      },
+      false);
   double sum = 0.0, squared_sum = 0.0;
   for (const float distance : distances) {
     sum += distance;

@@ -99,3 +99,39 @@ TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
     EXPECT_EQ(visits.back(), 0);
   }
 }
+
+TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
+  // 3 cm cells as the outlier removal uses them; ascending, and in any order (the same
+  // multiset): the surface's points bound their selection by their cell neighbour's k-th
+  // distance, the sparse points around it need the fallback search.
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.03f);
+  search.setInputCloud(cloud);
+  constexpr int k = 51;
+  for (const bool ascending : {true, false}) {
+    std::vector<int> visits(cloud->size(), 0);
+    search.forEachNearestK(
+        k,
+        [&](int i, const std::vector<float>& squared) {
+          ++visits[i];
+          std::vector<float> expected;
+          const Point& q = (*cloud)[i];
+          for (const Point& p : cloud->points) {
+            const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
+            if (std::isfinite(dx)) expected.push_back(dx * dx + dy * dy + dz * dz);
+          }
+          std::sort(expected.begin(), expected.end());
+          expected.resize(k);
+          std::vector<float> found = squared;
+          if (ascending) {
+            EXPECT_TRUE(std::is_sorted(found.begin(), found.end())) << "point " << i;
+          } else {
+            std::sort(found.begin(), found.end());
+          }
+          EXPECT_EQ(found, expected) << "point " << i << (ascending ? ", ascending" : "");
+        },
+        ascending);
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+    EXPECT_EQ(visits.back(), 0);
+  }
+}
