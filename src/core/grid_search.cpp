@@ -428,23 +428,37 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
+  auto linkIfClose = [&](size_t i, size_t j) {
+    const Entry &p = points_[i], &q = points_[j];
+    const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+    if (dx * dx + dy * dy + dz * dz < radius_sq) {
+      const uint32_t a = root(static_cast<uint32_t>(i)), b = root(static_cast<uint32_t>(j));
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  };
+  // Each pair of points once: within a cell, then with the cells at a lexicographically
+  // positive offset (half of the neighbouring cells; the other half reach this cell from
+  // their side). The components do not depend on the order the links come in.
   for (size_t begin = 0; begin < points_.size();) {
     const Run run = runAt(begin);
-    const int cx = run.cx, cy = run.cy, cz = run.cz;
     const size_t end = run.end;
-    for (int ring = 0; ring <= reach; ++ring) {
-      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
-        const uint32_t j = static_cast<uint32_t>(&e - points_.data());
-        for (size_t i = begin; i < end; ++i) {
-          if (j <= i) continue;  // each pair once
-          const Entry& q = points_[i];
-          const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
-          if (dx * dx + dy * dy + dz * dz < radius_sq) {
-            const uint32_t a = root(static_cast<uint32_t>(i)), b = root(j);
-            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    for (size_t i = begin; i < end; ++i) {
+      for (size_t j = i + 1; j < end; ++j) linkIfClose(i, j);
+    }
+    for (int x = 0; x <= reach; ++x) {
+      for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
+        for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
+          const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
+          if (nx > high_[0] || ny < low_[1] || ny > high_[1] || nz < low_[2] || nz > high_[2]) {
+            continue;
+          }
+          const Cell* cell = find(keyOf(nx, ny, nz));
+          if (!cell) continue;
+          for (uint32_t j = cell->begin; j < cell->end; ++j) {
+            for (size_t i = begin; i < end; ++i) linkIfClose(i, j);
           }
         }
-      });
+      }
     }
     begin = end;
   }
