@@ -797,24 +797,39 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
   // are solved on centred coordinates (D then follows from the centroid), the numerically
   // stable form of eq. 8.
   if (indices.size() < 3) return false;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  // The sums on pairs of doubles (SSE2 through GCC's vector extension), the scatter's six
+  // distinct entries only: each entry is the same sum of the same products as the Eigen
+  // expressions mean += p and scatter += q q^T give, in about half the instructions (this runs
+  // on every table hypothesis's 50-100k inliers).
+  using Pair = double __attribute__((vector_size(16)));
+  Pair sum_xy = {0.0, 0.0};
+  double sum_z = 0.0;
   size_t count = 0;
   for (int i : indices) {
     if (i < 0 || static_cast<size_t>(i) >= points.size()) return false;
-    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
-    if (!p.allFinite()) continue;
-    mean += p;
+    const Point& p = points[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    sum_xy += Pair{p.x, p.y};
+    sum_z += p.z;
     ++count;
   }
   if (count < 3) return false;
+  Eigen::Vector3d mean(sum_xy[0], sum_xy[1], sum_z);
   mean /= static_cast<double>(count);
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  const Pair mean_xy = {mean.x(), mean.y()};
+  Pair xx_xy = {0.0, 0.0}, yy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
   for (int i : indices) {
-    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
-    if (!p.allFinite()) continue;
-    const Eigen::Vector3d q = p - mean;
-    scatter += q * q.transpose();
+    const Point& p = points[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    const Pair xy = Pair{p.x, p.y} - mean_xy;
+    const double x = xy[0], y = xy[1], z = p.z - mean.z();
+    xx_xy += Pair{x, x} * xy;
+    yy_yz += Pair{y, y} * Pair{y, z};
+    xz_zz += Pair{x, z} * Pair{z, z};
   }
+  Eigen::Matrix3d scatter;
+  scatter << xx_xy[0], xx_xy[1], xz_zz[0], xx_xy[1], yy_yz[0], yy_yz[1], xz_zz[0], yy_yz[1],
+      xz_zz[1];
 
   // The fixed coefficient: the normal component that is largest for these points (from the
   // scatter's least-variance direction, so a poor initial plane cannot pick a degenerate one).
