@@ -273,28 +273,48 @@ void GridSearch<PointT>::forEachPointInBlocks(Start&& start, Gather&& gather,
 
 template <typename PointT>
 void GridSearch<PointT>::forEachNearestK(
-    int k, const std::function<void(int, const std::vector<float>&)>& visit) const {
+    int k, const std::function<void(int, const std::vector<float>&)>& visit, bool ascending) const {
   if (k <= 0) return;
   const size_t wanted = static_cast<size_t>(k);
   std::vector<float> xs, ys, zs, block_squared, squared, nearest;
   pcl::Indices fallback_indices;
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
+  // The previous point of the same cell and its k-th distance: the k nearest of q lie within
+  // that distance plus |q - previous| (triangle inequality), a ball far smaller than the block
+  // on a surface, so the selection below runs on half the candidates.
+  const Entry* previous = nullptr;
+  float previous_kth = 0.0f;
   forEachPointInBlocks(
-      [&] { xs.clear(), ys.clear(), zs.clear(); },
+      [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
       [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
       [&](const Entry& q, float covered_squared) {
         squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
-        squared.resize(xs.size());
+        // Keeps the candidates with squared distance <= bound: when they are at least k, the
+        // k smallest of them are the k smallest of the block (exact whatever the bound).
+        auto keepWithin = [&](float bound) {
+          squared.resize(xs.size());
+          size_t kept = 0;
+          for (const float d : block_squared) {
+            squared[kept] = d;
+            kept += d <= bound;
+          }
+          squared.resize(kept);
+          return kept;
+        };
         size_t kept = 0;
-        for (const float d : block_squared) {
-          squared[kept] = d;
-          kept += d <= covered_squared;
+        if (previous) {
+          const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
+          // 1e-4 relative slack for the float rounding of the distances.
+          const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
+          if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
         }
-        squared.resize(kept);
+        if (kept < wanted) kept = keepWithin(covered_squared);
         if (kept >= wanted) {
           std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
           nearest.assign(squared.begin(), squared.begin() + wanted);
-          std::sort(nearest.begin(), nearest.end());
+          previous = &q;
+          previous_kth = std::sqrt(nearest.back());
+          if (ascending) std::sort(nearest.begin(), nearest.end());
         } else {
           // A k-d tree, not the grid's growing rings: the points that get here are the sparse
           // ones (flying pixels, edges), whose rings run through many empty cells before k
@@ -408,23 +428,37 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
+  auto linkIfClose = [&](size_t i, size_t j) {
+    const Entry &p = points_[i], &q = points_[j];
+    const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+    if (dx * dx + dy * dy + dz * dz < radius_sq) {
+      const uint32_t a = root(static_cast<uint32_t>(i)), b = root(static_cast<uint32_t>(j));
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  };
+  // Each pair of points once: within a cell, then with the cells at a lexicographically
+  // positive offset (half of the neighbouring cells; the other half reach this cell from
+  // their side). The components do not depend on the order the links come in.
   for (size_t begin = 0; begin < points_.size();) {
     const Run run = runAt(begin);
-    const int cx = run.cx, cy = run.cy, cz = run.cz;
     const size_t end = run.end;
-    for (int ring = 0; ring <= reach; ++ring) {
-      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
-        const uint32_t j = static_cast<uint32_t>(&e - points_.data());
-        for (size_t i = begin; i < end; ++i) {
-          if (j <= i) continue;  // each pair once
-          const Entry& q = points_[i];
-          const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
-          if (dx * dx + dy * dy + dz * dz < radius_sq) {
-            const uint32_t a = root(static_cast<uint32_t>(i)), b = root(j);
-            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    for (size_t i = begin; i < end; ++i) {
+      for (size_t j = i + 1; j < end; ++j) linkIfClose(i, j);
+    }
+    for (int x = 0; x <= reach; ++x) {
+      for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
+        for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
+          const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
+          if (nx > high_[0] || ny < low_[1] || ny > high_[1] || nz < low_[2] || nz > high_[2]) {
+            continue;
+          }
+          const Cell* cell = find(keyOf(nx, ny, nz));
+          if (!cell) continue;
+          for (uint32_t j = cell->begin; j < cell->end; ++j) {
+            for (size_t i = begin; i < end; ++i) linkIfClose(i, j);
           }
         }
-      });
+      }
     }
     begin = end;
   }

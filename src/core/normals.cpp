@@ -18,15 +18,19 @@ constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
 // The weighted least-squares polynomial of MLS over the Darboux frame in `result` (PCL's
 // weight exp(-d^2 / r^2)): its normal equations summed neighbour by neighbour, the order fixed
-// at compile time so that the loops over the terms unroll.
+// at compile time so that the loops over the terms unroll. The sums run on pairs of doubles
+// (SSE2 through GCC's vector extension: each lane does the same multiply and add, so every
+// entry is the same double as one at a time), the lower triangle's row a as its first a / 2 + 1
+// pairs: about half the instructions per neighbour of the scalar sums.
 template <int kOrder>
 void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double search_radius,
                    pcl::MLSResult& result) {
+  using Pair = double __attribute__((vector_size(16)));
   constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
-  Eigen::Matrix<double, kTerms, kTerms> normal_matrix =
-      Eigen::Matrix<double, kTerms, kTerms>::Zero();
-  Eigen::Matrix<double, kTerms, 1> right_side = Eigen::Matrix<double, kTerms, 1>::Zero();
-  double terms[kTerms];
+  constexpr int kPairs = (kTerms + 1) / 2;
+  Pair rows[kTerms][kPairs] = {};  // rows[a][b / 2][b % 2]: entry (a, b), b <= a
+  Pair right_side[kPairs] = {};
+  Pair terms[kPairs] = {};  // a padding term stays 0
   const double squared_radius = search_radius * search_radius;
   for (const int neighbour : neighbours) {
     const Eigen::Vector3d offset(cloud[neighbour].x - result.mean[0],
@@ -35,29 +39,40 @@ void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double se
     const double weight = std::exp(-offset.dot(offset) / squared_radius);
     const double u = offset.dot(result.u_axis), v = offset.dot(result.v_axis);
     const double height = offset.dot(result.plane_normal);
-    // The loops unrolled (GCC's -O2 leaves them rolled: ~300 instructions per neighbour, most
-    // of MLS), with the same operations in the same order.
     int j = 0;
     double u_power = 1;
 #pragma GCC unroll 5
     for (int ui = 0; ui <= kOrder; ++ui) {  // PCL's term order: u^i v^j, j fastest
       double v_power = 1;
 #pragma GCC unroll 5
-      for (int vi = 0; vi <= kOrder - ui; ++vi) {
-        terms[j++] = u_power * v_power;
+      for (int vi = 0; vi <= kOrder - ui; ++vi, ++j) {
+        terms[j / 2][j % 2] = u_power * v_power;
         v_power *= v;
       }
       u_power *= u;
     }
+    const Pair weight_pair = {weight, weight}, height_pair = {height, height};
+    Pair weighted[kPairs];
+#pragma GCC unroll 8
+    for (int p = 0; p < kPairs; ++p) {
+      weighted[p] = weight_pair * terms[p];
+      right_side[p] += weighted[p] * height_pair;
+    }
 #pragma GCC unroll 15
-    for (int a = 0; a < kTerms; ++a) {  // the lower triangle
-      const double weighted = weight * terms[a];
-#pragma GCC unroll 15
-      for (int b = 0; b <= a; ++b) normal_matrix(a, b) += weighted * terms[b];
-      right_side[a] += weighted * height;
+    for (int a = 0; a < kTerms; ++a) {
+      const double w = weighted[a / 2][a % 2];
+      const Pair weighted_a = {w, w};
+#pragma GCC unroll 8
+      for (int p = 0; p <= a / 2; ++p) rows[a][p] += weighted_a * terms[p];
     }
   }
-  result.c_vec = normal_matrix.template selfadjointView<Eigen::Lower>().llt().solve(right_side);
+  Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
+  Eigen::Matrix<double, kTerms, 1> right;
+  for (int a = 0; a < kTerms; ++a) {
+    right[a] = right_side[a / 2][a % 2];
+    for (int b = 0; b <= a; ++b) normal_matrix(a, b) = rows[a][b / 2][b % 2];
+  }
+  result.c_vec = normal_matrix.template selfadjointView<Eigen::Lower>().llt().solve(right);
 }
 
 // The local surface of point `index` as pcl::MLSResult::computeMLSSurface computes it (the

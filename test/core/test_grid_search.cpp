@@ -6,7 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <map>
+#include <numeric>
 #include <random>
 
 using namespace tabletop_shapes;
@@ -97,5 +100,76 @@ TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
     });
     for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
     EXPECT_EQ(visits.back(), 0);
+  }
+}
+
+TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
+  // 3 cm cells as the outlier removal uses them; ascending, and in any order (the same
+  // multiset): the surface's points bound their selection by their cell neighbour's k-th
+  // distance, the sparse points around it need the fallback search.
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.03f);
+  search.setInputCloud(cloud);
+  constexpr int k = 51;
+  for (const bool ascending : {true, false}) {
+    std::vector<int> visits(cloud->size(), 0);
+    search.forEachNearestK(
+        k,
+        [&](int i, const std::vector<float>& squared) {
+          ++visits[i];
+          std::vector<float> expected;
+          const Point& q = (*cloud)[i];
+          for (const Point& p : cloud->points) {
+            const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
+            if (std::isfinite(dx)) expected.push_back(dx * dx + dy * dy + dz * dz);
+          }
+          std::sort(expected.begin(), expected.end());
+          expected.resize(k);
+          std::vector<float> found = squared;
+          if (ascending) {
+            EXPECT_TRUE(std::is_sorted(found.begin(), found.end())) << "point " << i;
+          } else {
+            std::sort(found.begin(), found.end());
+          }
+          EXPECT_EQ(found, expected) << "point " << i << (ascending ? ", ascending" : "");
+        },
+        ascending);
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+    EXPECT_EQ(visits.back(), 0);
+  }
+}
+
+TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
+  // Radii of one cell and of several (reach 1 and 3): each pair of points closer than the
+  // radius links, whatever cells apart they lie.
+  const CloudPtr cloud = surfaceCloud();
+  const size_t finite_points = cloud->size() - 1;  // the last point is NaN
+  for (const float radius : {0.006f, 0.03f}) {
+    GridSearch<Point> search(radius <= 0.01f ? radius : 0.01f, false);
+    search.setInputCloud(cloud);
+    // Reference: a union-find over every pair, components by smallest index.
+    std::vector<size_t> parent(finite_points);
+    std::iota(parent.begin(), parent.end(), 0);
+    std::function<size_t(size_t)> root = [&](size_t i) {
+      return parent[i] == i ? i : parent[i] = root(parent[i]);
+    };
+    for (size_t i = 0; i < finite_points; ++i) {
+      for (size_t j = i + 1; j < finite_points; ++j) {
+        const Point &p = (*cloud)[i], &q = (*cloud)[j];
+        const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+        if (dx * dx + dy * dy + dz * dz < radius * radius) {
+          const size_t a = root(i), b = root(j);
+          parent[std::max(a, b)] = std::min(a, b);
+        }
+      }
+    }
+    std::map<size_t, pcl::Indices> by_root;
+    for (size_t i = 0; i < finite_points; ++i) by_root[root(i)].push_back(static_cast<int>(i));
+    std::vector<pcl::Indices> expected;
+    for (auto& [r, component] : by_root) expected.push_back(component);  // roots = smallest
+    const std::vector<pcl::Indices> components = search.connectedComponents(radius);
+    EXPECT_GT(components.size(), 1u) << "radius " << radius;  // the sparse points stay apart
+    EXPECT_LT(components.size(), finite_points / 10) << "radius " << radius;  // the surface links
+    EXPECT_EQ(components, expected) << "radius " << radius;
   }
 }

@@ -1,6 +1,8 @@
 #include "tabletop_shapes/core/normals.h"
 
 #include <gtest/gtest.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/surface/mls.h>
 
 #include <chrono>
 #include <limits>
@@ -114,6 +116,45 @@ TEST(NormalsMLS, BoxFacesInCameraFrame) {
   }
   EXPECT_GT(top, 50);
   EXPECT_GT(front, 20);
+}
+
+TEST(NormalsMLS, SurfaceAndNormalsAreThoseOfPclMovingLeastSquares) {
+  // A curved noisy surface, every order the parameter allows: the sums of our fit (grid
+  // neighbours, normal equations summed in pairs of doubles) against pcl::MovingLeastSquares
+  // (k-d tree, its own matrix products): equal up to the order of floating-point additions.
+  auto cloud = std::make_shared<Cloud>();
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 0.001f);
+  for (float a = -0.08f; a <= 0.08f; a += 0.005f) {
+    for (float b = -0.06f; b <= 0.06f; b += 0.005f) {
+      cloud->push_back(Point(a, b + noise(rng), 0.9f + 3.0f * a * a + noise(rng)));
+    }
+  }
+  for (const int order : {1, 2, 3, 4}) {
+    NormalParams params;
+    params.polynomial_order = order;
+    NormalCloud ours;
+    estimateNormalsMLS(cloud, params, ours);
+
+    pcl::MovingLeastSquares<Point, pcl::PointNormal> mls;
+    mls.setInputCloud(cloud);
+    mls.setSearchMethod(std::make_shared<pcl::search::KdTree<Point>>());
+    mls.setSearchRadius(params.search_radius);
+    mls.setPolynomialOrder(order);
+    mls.setComputeNormals(true);
+    NormalCloud reference;
+    mls.process(reference);
+
+    ASSERT_EQ(ours.size(), reference.size()) << "order " << order;
+    for (size_t i = 0; i < ours.size(); ++i) {
+      Eigen::Vector3f normal = reference[i].getNormalVector3fMap();
+      if (normal.dot(-reference[i].getVector3fMap()) < 0.0f) normal = -normal;  // as ours
+      EXPECT_LT((ours[i].getVector3fMap() - reference[i].getVector3fMap()).norm(), 1e-6f)
+          << "point " << i << ", order " << order;
+      EXPECT_LT((ours[i].getNormalVector3fMap() - normal).norm(), 1e-5f)
+          << "point " << i << ", order " << order;
+    }
+  }
 }
 
 TEST(NormalsMLS, BadInputGivesAnEmptyDenseCloud) {

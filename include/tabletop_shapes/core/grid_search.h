@@ -41,10 +41,11 @@ class GridSearch : public pcl::search::Search<PointT> {
 
   // The k nearest neighbours of every point of the input at once: visit(index, squared
   // distances) with the k smallest squared distances in ascending order (the point itself
-  // first, at 0), points in no particular order. Faster than one nearestKSearch per point: the
-  // candidates around each cell are gathered once for all the points in it.
-  void forEachNearestK(int k,
-                       const std::function<void(int, const std::vector<float>&)>& visit) const;
+  // first, at 0), or in no order when !ascending (cheaper: no sort), points in no particular
+  // order. Faster than one nearestKSearch per point: the candidates around each cell are
+  // gathered once for all the points in it.
+  void forEachNearestK(int k, const std::function<void(int, const std::vector<float>&)>& visit,
+                       bool ascending = true) const;
   // The same with the neighbours' input indices: visit(index, the k nearest, nearest first,
   // equal distances by index), the lists one nearestKSearch per point gives.
   void forEachNearestKIndices(int k,
