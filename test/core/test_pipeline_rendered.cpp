@@ -249,4 +249,38 @@ TEST(PipelineOnRenderedScenes, RealSenseEverydaySolidsAreNoWiderThanTheObjects) 
   }
 }
 
+// Issue 12's "cans must come out cylinders", on a RealSense everyday scene of the benchmark
+// (seed 2012, scene 14): a short wide can (d 85, h 33 mm) at 1.06 m and a soup can (d 66, h
+// 101 mm) at 0.55 m were typed box: the circle through their few wall points came out 2-3 mm
+// small, and the box around the smeared lid explained the points better (0.7-1.4 mm RMS against
+// 1.0-1.6). The box's empty top corners (the camera saw the table through them) now give them
+// to the cylinder standing inside the box.
+TEST(PipelineOnRenderedScenes, RealSenseCansAreCylinders) {
+  std::mt19937 seeds(2012);  // benchmark_accuracy's everyday scene seeds
+  for (int i = 0; i < 13; ++i) seeds();
+  const RenderedScene scene =
+      renderScene(everydayScene(static_cast<uint32_t>(seeds()), SensorModel::RealSenseD435));
+  PipelineParams params;
+  params.table.up = scene.up;
+  params.shapes.edge_bleed_px = static_cast<float>(scene.spec.noise.edge_bleed_px);
+  const SceneResult result = Pipeline(params).process(*scene.cloud);
+  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
+  int cans = 0;
+  for (const Match& m : matches) {
+    const GroundTruthObject& truth = scene.objects[m.truth];
+    const ShapeFit& fit = result.objects[m.detection];
+    if (truth.name == "flat bottle" || truth.name == "border box") {
+      EXPECT_EQ(fit.type, ShapeType::Cube) << truth.name << " stays a box";
+      continue;
+    }
+    if (truth.name != "short wide can" && truth.name != "soup can") continue;
+    ++cans;
+    EXPECT_TRUE(expectedSolid(truth, fit, scene.up))
+        << truth.name << ": " << shapeTypeName(fit.type);
+    EXPECT_NEAR(fit.radius, truth.radius_bottom, 0.004f) << truth.name;
+    EXPECT_NEAR(fit.height, truth.height, 0.005f) << truth.name;
+  }
+  EXPECT_EQ(cans, 2);
+}
+
 }  // namespace
