@@ -205,9 +205,10 @@ bool expectedSolid(const GroundTruthObject& truth, const ShapeFit& fit, const Ei
     return fit.type == ShapeType::Cone &&
            (fit.radius_top > fit.radius_bottom) == (truth.radius_top > truth.radius_bottom);
   }
-  if (truth.form != ObjectForm::LyingCan) return fit.type == truth.type;
   const bool lying_cylinder = fit.type == ShapeType::Cylinder &&
                               std::abs(fit.axis().dot(up)) < std::cos(static_cast<float>(kPi / 4));
+  // A standing can or mug fitted by a cylinder on its side is the wrong solid for a grasp.
+  if (truth.form != ObjectForm::LyingCan) return fit.type == truth.type && !lying_cylinder;
   return lying_cylinder || fit.type == ShapeType::Cube;
 }
 

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <random>
 
 using namespace tabletop_shapes;
 using namespace tabletop_shapes::sim;
@@ -206,6 +207,80 @@ TEST(PipelineOnRenderedScenes, RealSenseMarkerIsThinAndBottlesKeepTheirNecks) {
           << "seed " << seed << " " << truth.name;
     }
   }
+}
+
+// Issue 12's "no fitted solid more than 20 % larger than the object", on two RealSense everyday
+// scenes of the benchmark (benchmark_accuracy --everyday, seed 2012: scenes 16 and 36):
+// - a mug at 1.16 m: a cylinder lying across its handle and edge smear (r 49 mm, 12 cm wide in
+//   view for points 8.4 cm wide) explained its points better than the upright one and came out
+//   20.3 % over; a lying solid wider than its points across the line of sight is now rejected;
+// - a box (89 x 38 x 175 mm) cut by the image's bottom border, seen from nearly straight above
+//   at 0.46 m, only its top face in view: the smear all around that face made it 46 mm across
+//   for 38 (20.4 % over); its hidden ends now move in by the smear.
+TEST(PipelineOnRenderedScenes, RealSenseEverydaySolidsAreNoWiderThanTheObjects) {
+  std::mt19937 seeds(2012);  // benchmark_accuracy's everyday scene seeds
+  std::vector<uint32_t> scene_seeds;
+  for (int i = 0; i < 36; ++i) scene_seeds.push_back(static_cast<uint32_t>(seeds()));
+  const std::map<uint32_t, std::string> cases = {{scene_seeds[15], "border box"},
+                                                 {scene_seeds[35], "mug"}};
+  for (const auto& [seed, name] : cases) {
+    const RenderedScene scene = renderScene(everydayScene(seed, SensorModel::RealSenseD435));
+    PipelineParams params;
+    params.table.up = scene.up;
+    params.shapes.edge_bleed_px = static_cast<float>(scene.spec.noise.edge_bleed_px);
+    const SceneResult result = Pipeline(params).process(*scene.cloud);
+    const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
+    const auto m = std::find_if(matches.begin(), matches.end(), [&](const Match& m) {
+      return scene.objects[m.truth].name == name;
+    });
+    ASSERT_NE(m, matches.end()) << name << " not found";
+    const GroundTruthObject& truth = scene.objects[m->truth];
+    const ShapeFit& fit = result.objects[m->detection];
+    EXPECT_TRUE(expectedSolid(truth, fit, scene.up))
+        << name << ": " << shapeTypeName(fit.type) << " " << fit.reason;
+    EXPECT_LT(oversizePercent(truth, fit, scene.up), 15.0) << name;
+    if (name == "mug") {
+      EXPECT_GT(std::abs(fit.axis().dot(scene.up)), 0.9f) << "the mug stands";
+      EXPECT_NEAR(fit.radius, truth.radius_bottom, 0.003f);
+    } else {
+      EXPECT_TRUE(fit.truncated);
+      EXPECT_LT(fit.dimensions.minCoeff(), 0.044f) << "38 mm thick, 46 mm before";
+    }
+  }
+}
+
+// Issue 12's "cans must come out cylinders", on a RealSense everyday scene of the benchmark
+// (seed 2012, scene 14): a short wide can (d 85, h 33 mm) at 1.06 m and a soup can (d 66, h
+// 101 mm) at 0.55 m were typed box: the circle through their few wall points came out 2-3 mm
+// small, and the box around the smeared lid explained the points better (0.7-1.4 mm RMS against
+// 1.0-1.6). The box's empty top corners (the camera saw the table through them) now give them
+// to the cylinder standing inside the box.
+TEST(PipelineOnRenderedScenes, RealSenseCansAreCylinders) {
+  std::mt19937 seeds(2012);  // benchmark_accuracy's everyday scene seeds
+  for (int i = 0; i < 13; ++i) seeds();
+  const RenderedScene scene =
+      renderScene(everydayScene(static_cast<uint32_t>(seeds()), SensorModel::RealSenseD435));
+  PipelineParams params;
+  params.table.up = scene.up;
+  params.shapes.edge_bleed_px = static_cast<float>(scene.spec.noise.edge_bleed_px);
+  const SceneResult result = Pipeline(params).process(*scene.cloud);
+  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
+  int cans = 0;
+  for (const Match& m : matches) {
+    const GroundTruthObject& truth = scene.objects[m.truth];
+    const ShapeFit& fit = result.objects[m.detection];
+    if (truth.name == "flat bottle" || truth.name == "border box") {
+      EXPECT_EQ(fit.type, ShapeType::Cube) << truth.name << " stays a box";
+      continue;
+    }
+    if (truth.name != "short wide can" && truth.name != "soup can") continue;
+    ++cans;
+    EXPECT_TRUE(expectedSolid(truth, fit, scene.up))
+        << truth.name << ": " << shapeTypeName(fit.type);
+    EXPECT_NEAR(fit.radius, truth.radius_bottom, 0.004f) << truth.name;
+    EXPECT_NEAR(fit.height, truth.height, 0.005f) << truth.name;
+  }
+  EXPECT_EQ(cans, 2);
 }
 
 }  // namespace

@@ -718,6 +718,16 @@ TEST(EverydayScoring, BowlTaperMustOpenUpward) {
   EXPECT_FALSE(expectedSolid(bowl, fittedSolid(ShapeType::Cylinder, 0.06f, 0.06f, 0.065f), kUp));
 }
 
+// A standing mug fitted by a cylinder on its side (the RealSense mug at 1.16 m: r 49 mm, 75 mm
+// long, through its handle) is the wrong solid, though a cylinder.
+TEST(EverydayScoring, StandingCylinderMustStand) {
+  const GroundTruthObject mug = uprightTruth(ShapeType::Cylinder, 0.041f, 0.041f, 0.095f);
+  EXPECT_TRUE(expectedSolid(mug, fittedSolid(ShapeType::Cylinder, 0.042f, 0.042f, 0.097f), kUp));
+  const ShapeFit lying = fittedSolid(ShapeType::Cylinder, 0.0493f, 0.0493f, 0.075f, kAxisAlongX);
+  EXPECT_FALSE(expectedSolid(mug, lying, kUp));
+  EXPECT_NEAR(oversizePercent(mug, lying, kUp), 100.0 * (0.0986 / 0.082 - 1), 0.01);
+}
+
 // A lying can: a lying cylinder or its bounding box is right, an upright cylinder is not.
 TEST(EverydayScoring, LyingCanIsALyingCylinderOrItsBox) {
   GroundTruthObject can = uprightTruth(ShapeType::Cylinder, 0.033f, 0.033f, 0.101f);

@@ -7,9 +7,19 @@
 
 namespace tabletop_shapes {
 
+// What the camera's edge smear (ShapeEstimatorParams::edge_bleed_px) adds at a box's hidden ends:
+// those come from the seen faces' points, whose rims an active-stereo camera smears over the
+// background beyond the silhouette, so each hidden end moves in by `distance` [m], except one
+// facing a direction in `cut_directions` (the image border cut the object there: no smear).
+struct SilhouetteSmear {
+  float distance = 0.0f;
+  std::vector<Eigen::Vector3f> cut_directions;
+};
+
 // `table` is the support plane (normal up). Result: type Cube; ok == false with a reason
 // when no consistent set of faces is found. center = centre of the solid box.
-ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams& params);
+ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams& params,
+                 const SilhouetteSmear& smear = {});
 
 // The minimum-volume upright box around the cluster's points: the minimum-area rectangle of
 // their footprint on the table times the height of the highest point above it. Type Cube,

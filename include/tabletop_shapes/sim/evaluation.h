@@ -53,8 +53,8 @@ Eigen::Vector3f solidExtents(const ShapeFit& fit, const Eigen::Vector3f& up);
 double oversizePercent(const GroundTruthObject& truth, const ShapeFit& fit,
                        const Eigen::Vector3f& up);
 // The fit is the solid expected for the true object: its type, a cone tapering the same way
-// (a bowl opens upward), and a lying can a cylinder lying down (axis more than 45 deg from up)
-// or its bounding box.
+// (a bowl opens upward), a standing cylinder upright (axis within 45 deg of up), and a lying
+// can a cylinder lying down (axis more than 45 deg from up) or its bounding box.
 bool expectedSolid(const GroundTruthObject& truth, const ShapeFit& fit, const Eigen::Vector3f& up);
 // Dimension errors (eq. 17, no volume): the measures of compareToTruth when the solid is the
 // expected one (a lying can's box against the can's bounding box), else the extents of both
