@@ -54,6 +54,19 @@ float sidewaysSmear(float range, const ClusteringParams& params) {
   return std::max(0.005f, 2.0f * params.split_depth_step * range * range);
 }
 
+// The height above the table of the cloud's highest point.
+float topOf(const Cloud& cloud, const Plane& table) {
+  float top = -std::numeric_limits<float>::infinity();
+  for (const auto& p : cloud) top = std::max(top, table.signedDistance(p.getVector3fMap()));
+  return top;
+}
+
+// Points beside or over another part that show a stack: the lower part of a stack needs
+// split_min_points, a tenth of them beyond the smear is plenty of evidence.
+int stackEvidencePoints(const ClusteringParams& params) {
+  return std::max(10, params.split_min_points / 10);
+}
+
 Eigen::Vector3f centroidOf(const Cloud& cloud) {
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
   for (const auto& p : cloud) centroid += p.getVector3fMap();
@@ -538,8 +551,7 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
 
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params) {
   if (cluster.empty()) return false;
-  float top = -std::numeric_limits<float>::infinity();
-  for (const auto& p : cluster) top = std::max(top, table.signedDistance(p.getVector3fMap()));
+  const float top = topOf(cluster, table);
   const TableProjection onTable(table);
   std::vector<Eigen::Vector2f> top_band;
   for (const auto& p : cluster) {
@@ -548,10 +560,9 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   }
   const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(top_band));
   if (hull.size() < 3) return true;  // a ridge or a spike on top: no footprint to judge by
-  // Depth noise smears a vertical face sideways, more with range; the lower part of a stack
-  // needs split_min_points, a tenth of them beyond the smear is plenty of evidence.
+  // Depth noise smears a vertical face sideways, more with range.
   const float smear = sidewaysSmear(centroidOf(cluster).norm(), params);
-  const int needed = std::max(10, params.split_min_points / 10);
+  const int needed = stackEvidencePoints(params);
   int beside = 0;
   for (const auto& p : cluster) {
     if (table.signedDistance(p.getVector3fMap()) < top - kStackStep &&
@@ -593,11 +604,85 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
   return out;
 }
 
+// ---- one top face cut in two by an object resting on it (OSD learn19, learn21) ----
+// Whether two objects of one part touch: some point of `a` lies within kTouching of `b`.
+constexpr float kTouching = 0.015f;  // [m]: neighbouring 5 mm voxels of one surface, and noise
+bool touch(const Cloud& a, const CloudConstPtr& b) {
+  GridSearch<Point> search(kTouching, false);
+  search.setInputCloud(b);
+  pcl::Indices near;
+  std::vector<float> distances;
+  return std::any_of(a.begin(), a.end(), [&](const Point& p) {
+    return search.radiusSearch(p, kTouching, near, distances, 1) > 0;
+  });
+}
+
+// The footprint on the table of a cloud's top band (its points within kTopBand of its top).
+std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const Plane& table,
+                                            const TableProjection& onTable) {
+  std::vector<Eigen::Vector2f> band;
+  for (const auto& p : cloud) {
+    if (table.signedDistance(p.getVector3fMap()) >= top - kTopBand) band.push_back(onTable(p));
+  }
+  return convexHull2d(std::move(band));
+}
+
+// Objects the top-face split made of one stack part that are one object: a box with another
+// lying across its top shows its own top on both sides of the upper one, two level faces at
+// the same height (within kTopStep) that the face split takes for two objects side by side. They
+// are joined again when they touch (the lower box's front face runs on under the upper one) and
+// another part of the same cluster rises above them over the gap between their tops (beyond
+// `smear`, at least `needed` points): what cut the face lies on it. Two boxes of one height
+// standing side by side have nothing over the gap between them.
+std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
+                                                  const std::vector<CloudConstPtr>& others,
+                                                  const Plane& table, float smear, int needed) {
+  if (objects.size() < 2 || others.empty()) return objects;
+  const TableProjection onTable(table);
+  auto coveredGap = [&](const Cloud& a, const Cloud& b) {
+    const float top_a = topOf(a, table), top_b = topOf(b, table);
+    if (std::abs(top_a - top_b) > kTopStep) return false;
+    const std::vector<Eigen::Vector2f> outline_a = topBandOutline(a, top_a, table, onTable);
+    const std::vector<Eigen::Vector2f> outline_b = topBandOutline(b, top_b, table, onTable);
+    std::vector<Eigen::Vector2f> both = outline_a;
+    both.insert(both.end(), outline_b.begin(), outline_b.end());
+    const std::vector<Eigen::Vector2f> joint = convexHull2d(std::move(both));
+    if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
+    const float above = std::max(top_a, top_b) + kTopStep;
+    int over_gap = 0;
+    for (const CloudConstPtr& other : others) {
+      for (const auto& p : *other) {
+        const Eigen::Vector2f q = onTable(p);
+        if (table.signedDistance(p.getVector3fMap()) > above && insideDistance(joint, q) >= 0 &&
+            insideDistance(outline_a, q) < -smear && insideDistance(outline_b, q) < -smear &&
+            ++over_gap >= needed)
+          return true;
+      }
+    }
+    return false;
+  };
+  for (bool joined = true; joined;) {
+    joined = false;
+    for (size_t i = 0; i < objects.size() && !joined; ++i) {
+      for (size_t j = i + 1; j < objects.size() && !joined; ++j) {
+        if (!coveredGap(*objects[i], *objects[j]) || !touch(*objects[i], objects[j])) continue;
+        auto merged = std::make_shared<Cloud>(*objects[i]);
+        *merged += *objects[j];
+        objects[i] = merged;
+        objects.erase(objects.begin() + j);
+        joined = true;
+      }
+    }
+  }
+  return objects;
+}
+
 }  // namespace
 
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params,
-                                          std::vector<int>* side_by_side) {
+                                          std::vector<int>* side_by_side,
+                                          const CloudConstPtr& scene) {
   const int min_points = std::max(1, params.split_min_points);
   std::vector<std::pair<CloudPtr, int>> out;  // part, side-by-side group
   if (!cluster || !(params.split_concavity_deg > 0.0f) || !(params.split_patch_size > 0.0f)) {
@@ -606,8 +691,19 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     // Stacked objects part at concave seams, then objects side by side in each part under
     // their own top faces (LCCP joins touching objects across a front face they share).
     int group = 0;
-    for (const CloudPtr& part : splitStack(cluster, table, params, min_points)) {
-      const std::vector<CloudPtr> objects = splitUnderTopFaces(part, table, min_points);
+    const std::vector<CloudPtr> parts = splitStack(cluster, table, params, min_points);
+    const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
+    for (const CloudPtr& part : parts) {
+      // What may rest on the part: every object's points (the part's own lie below its top),
+      // else the cluster's other parts.
+      std::vector<CloudConstPtr> others;
+      if (scene) others.push_back(scene);
+      for (const CloudPtr& other : parts) {
+        if (!scene && other != part) others.push_back(other);
+      }
+      const std::vector<CloudPtr> objects =
+          joinTopsCutByAnObjectOnThem(splitUnderTopFaces(part, table, min_points), others, table,
+                                      smear, stackEvidencePoints(params));
       for (const CloudPtr& object : objects)
         out.emplace_back(object, objects.size() > 1 ? group : -1);
       ++group;

@@ -295,6 +295,44 @@ TEST(ClusterSplit, CanTouchingABoxOfNearlyItsHeightComesApart) {
   expectPartsMatch(split(together({box, can})), {box, can});
 }
 
+// A box 12 x 24 x 5 cm lying across the middle of a box 30 x 16 x 6 cm (OSD learn19, learn21):
+// the lower box's top shows left and right of the upper one, two level faces at one height. It
+// is one box: what parts the faces lies on it. The lower box stays whole, in the same cluster as
+// the upper one and alone in its own (the scene's points hand over the upper box).
+struct BoxAcrossABox {
+  CloudPtr lower_visible, upper;
+};
+// Off to the camera's right, so that the upper box's left face, standing on the lower top,
+// joins them in one Euclidean cluster.
+BoxAcrossABox boxAcrossABox() {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const float x = 0.12f;
+  const CloudPtr lower = synthetic::box({0.30f, 0.16f, 0.06f}, {x, 0.0f}, 0.0f, s);
+  const CloudPtr upper =
+      synthetic::lifted(synthetic::box({0.12f, 0.24f, 0.05f}, {x, 0.0f}, 0.0f, s), 0.06f);
+  return {synthetic::withoutFootprint(lower, x - 0.06f, x + 0.06f, -0.12f, 0.12f, 0.06f), upper};
+}
+
+TEST(ClusterSplit, BoxWithABoxAcrossItsTopStaysOneBox) {
+  const BoxAcrossABox stack = boxAcrossABox();
+  // Within 8 %: strips of the lower top along the upper box's sides (~120 points, 6 %) go with
+  // the upper box; before, the lower box came in two parts of ~950 points each.
+  expectPartsMatch(split(together({stack.lower_visible, stack.upper})),
+                   {stack.lower_visible, stack.upper}, 0.08f);
+
+  // The lower box alone in its cluster (the upper one parted from it by a gap in the samples):
+  // the upper box comes with the scene's points.
+  const SeenCluster lower = seenCluster(*stack.lower_visible);
+  const SeenCluster upper = seenCluster(*stack.upper);
+  auto scene = std::make_shared<Cloud>(*lower.cluster);
+  *scene += *upper.cluster;
+  EXPECT_EQ(
+      splitAtConcaveSeams(lower.cluster, lower.table, ClusteringParams(), nullptr, scene).size(),
+      1u);
+  // Without it, nothing tells the two faces from two boxes of one height side by side.
+  EXPECT_EQ(splitAtConcaveSeams(lower.cluster, lower.table, ClusteringParams()).size(), 2u);
+}
+
 TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());
