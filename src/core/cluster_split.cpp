@@ -631,13 +631,17 @@ std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const
 // lying across its top shows its own top on both sides of the upper one, two level faces at
 // the same height (within kTopStep) that the face split takes for two objects side by side. They
 // are joined again when they touch (the lower box's front face runs on under the upper one) and
-// another part of the same cluster rises above them over the gap between their tops (beyond
-// `smear`, at least `needed` points): what cut the face lies on it. Two boxes of one height
-// standing side by side have nothing over the gap between them.
+// the gap between their tops (their joint outline outside both, beyond `smear`) is covered:
+// points of `surroundings` (which holds the objects' own) rise above them over at least `needed`
+// points, and every footprint cell of the gap where other points than their own are seen lower
+// has such a point over it (kMaxUncoveredGapCells aside): what cut the face lies across it. Two
+// boxes of one height standing side by side have nothing over the gap between them; the gap between
+// diagonal neighbours in a block holds the other two, one of them seen lower.
+constexpr int kMaxUncoveredGapCells = 2;
 std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
-                                                  const std::vector<CloudConstPtr>& others,
-                                                  const Plane& table, float smear, int needed) {
-  if (objects.size() < 2 || others.empty()) return objects;
+                                                  const Cloud& surroundings, const Plane& table,
+                                                  float smear, int needed) {
+  if (objects.size() < 2) return objects;
   const TableProjection onTable(table);
   auto coveredGap = [&](const Cloud& a, const Cloud& b) {
     const float top_a = topOf(a, table), top_b = topOf(b, table);
@@ -648,18 +652,40 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     both.insert(both.end(), outline_b.begin(), outline_b.end());
     const std::vector<Eigen::Vector2f> joint = convexHull2d(std::move(both));
     if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
-    const float above = std::max(top_a, top_b) + kTopStep;
-    int over_gap = 0;
-    for (const CloudConstPtr& other : others) {
-      for (const auto& p : *other) {
+    const float top = std::max(top_a, top_b);
+    // Per footprint cell of the gap: points over the tops and points lower, beyond kTopStep
+    // (at their level lie strips of their own top that went with the object on it), counted +1
+    // from the surroundings, -1 from the objects themselves.
+    struct GapCell {
+      int over = 0, not_over = 0;
+    };
+    std::unordered_map<uint64_t, GapCell> gap;
+    int over = 0;
+    auto visit = [&](const Cloud& cloud, int sign) {
+      for (const auto& p : cloud) {
+        const float h = table.signedDistance(p.getVector3fMap());
         const Eigen::Vector2f q = onTable(p);
-        if (table.signedDistance(p.getVector3fMap()) > above && insideDistance(joint, q) >= 0 &&
-            insideDistance(outline_a, q) < -smear && insideDistance(outline_b, q) < -smear &&
-            ++over_gap >= needed)
-          return true;
+        if (std::abs(h - top) <= kTopStep || insideDistance(joint, q) < 0 ||
+            insideDistance(outline_a, q) >= -smear || insideDistance(outline_b, q) >= -smear)
+          continue;
+        const Eigen::Vector2f c = q / kFootprintCell;
+        GapCell& cell =
+            gap[voxel_key::pack(voxel_key::floorToInt(c.x()), voxel_key::floorToInt(c.y()), 0)];
+        if (h > top) {
+          cell.over += sign;
+          over += sign;
+        } else {
+          cell.not_over += sign;
+        }
       }
-    }
-    return false;
+    };
+    visit(surroundings, 1);
+    visit(a, -1);
+    visit(b, -1);
+    const auto uncovered = std::count_if(gap.begin(), gap.end(), [](const auto& cell) {
+      return cell.second.not_over > 0 && cell.second.over <= 0;
+    });
+    return over >= needed && uncovered <= kMaxUncoveredGapCells;
   };
   for (bool joined = true; joined;) {
     joined = false;
@@ -693,17 +719,12 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     int group = 0;
     const std::vector<CloudPtr> parts = splitStack(cluster, table, params, min_points);
     const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
+    // What may rest on a part or stand beside it: every object's points, else the cluster's.
+    const Cloud& surroundings = scene ? *scene : *cluster;
     for (const CloudPtr& part : parts) {
-      // What may rest on the part: every object's points (the part's own lie below its top),
-      // else the cluster's other parts.
-      std::vector<CloudConstPtr> others;
-      if (scene) others.push_back(scene);
-      for (const CloudPtr& other : parts) {
-        if (!scene && other != part) others.push_back(other);
-      }
       const std::vector<CloudPtr> objects =
-          joinTopsCutByAnObjectOnThem(splitUnderTopFaces(part, table, min_points), others, table,
-                                      smear, stackEvidencePoints(params));
+          joinTopsCutByAnObjectOnThem(splitUnderTopFaces(part, table, min_points), surroundings,
+                                      table, smear, stackEvidencePoints(params));
       for (const CloudPtr& object : objects)
         out.emplace_back(object, objects.size() > 1 ? group : -1);
       ++group;
