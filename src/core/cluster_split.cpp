@@ -703,6 +703,112 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
   return objects;
 }
 
+// ---- a box lying across two others (issue 15) ----
+// The plank's front face continues the legs' front faces nearly flush, and LCCP joins the pile
+// into one convex part; no top face parts them either (the legs' tops lie under the plank). What
+// tells the pile apart is below the plank: horizontal slices of the part under its bottom fall
+// into separate pieces (the legs), slices through the plank are one. A single box, can or cup
+// is one piece at every level. Slices are taken every kBridgeSliceStep from kStackStep under the
+// top down to kStackStep above the table; pieces link within kBridgeLink.
+constexpr float kBridgeSliceStep = 0.005f;  // [m]
+constexpr float kBridgeLink = 0.015f;       // [m]
+// Something standing within this of the part, lower than the slice, may hide the middle of a
+// single object's lower part and make two pieces of it (OSD's occluded scenes): no split then.
+constexpr float kBridgeClearance = 0.05f;  // [m]
+
+// The part's pieces under a bridge: the legs (each piece of the highest slice with two pieces of
+// at least `min_points`), and what lies on them (the rest); the part itself otherwise.
+// `surroundings` holds the part's points and the objects around it.
+std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table,
+                                        const Cloud& surroundings, int min_points) {
+  const Cloud& cloud = *part;
+  if (static_cast<int>(cloud.size()) < 3 * min_points) return {part};
+  std::vector<float> heights(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i)
+    heights[i] = table.signedDistance(cloud[i].getVector3fMap());
+  const float top = *std::max_element(heights.begin(), heights.end());
+  for (float level = top - kStackStep; level >= kStackStep; level -= kBridgeSliceStep) {
+    auto slice = std::make_shared<Cloud>();
+    std::vector<int> slice_index;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      if (heights[i] < level) {
+        slice->push_back(cloud[i]);
+        slice_index.push_back(static_cast<int>(i));
+      }
+    }
+    if (static_cast<int>(slice->size()) < 2 * min_points) return {part};
+    GridSearch<Point> grid(kBridgeLink, false);
+    grid.setInputCloud(slice);
+    std::vector<pcl::Indices> pieces = grid.connectedComponents(kBridgeLink);
+    pieces.erase(std::remove_if(pieces.begin(), pieces.end(),
+                                [&](const pcl::Indices& piece) {
+                                  return static_cast<int>(piece.size()) < min_points;
+                                }),
+                 pieces.end());
+    if (pieces.size() < 2) continue;
+    // Nothing else stands close beside the part below the slice (an occluder in front).
+    const TableProjection onTable(table);
+    std::vector<Eigen::Vector2f> footprint;
+    for (const auto& p : cloud) footprint.push_back(onTable(p));
+    const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(footprint));
+    if (hull.size() < 3) return {part};
+    const auto beside =
+        std::count_if(surroundings.begin(), surroundings.end(), [&](const Point& p) {
+          const float h = table.signedDistance(p.getVector3fMap());
+          const float inside = insideDistance(hull, onTable(p));
+          return h < level && inside < -kBridgeLink && inside > -kBridgeClearance;
+        });
+    if (beside >= min_points / 10) return {part};
+    std::vector<std::vector<int>> legs;
+    std::vector<std::vector<Eigen::Vector2f>> leg_outlines;
+    std::vector<char> in_leg(cloud.size(), 0);
+    for (const pcl::Indices& piece : pieces) {
+      legs.emplace_back();
+      std::vector<Eigen::Vector2f> leg_footprint;
+      for (int k : piece) {
+        legs.back().push_back(slice_index[k]);
+        leg_footprint.push_back(onTable(cloud[slice_index[k]]));
+        in_leg[slice_index[k]] = 1;
+      }
+      leg_outlines.push_back(convexHull2d(std::move(leg_footprint)));
+    }
+    // A leg's top, seen where it sticks out beyond the bridge's top face, lies above the slice:
+    // it goes with the leg (else the leg is cut short and the bridge reaches down to it).
+    std::vector<Eigen::Vector2f> bridge_top;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      if (heights[i] >= top - kTopBand) bridge_top.push_back(onTable(cloud[i]));
+    }
+    const std::vector<Eigen::Vector2f> bridge_outline = convexHull2d(std::move(bridge_top));
+    std::vector<int> rest;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      if (in_leg[i]) continue;
+      const Eigen::Vector2f q = onTable(cloud[i]);
+      size_t leg = legs.size();
+      if (heights[i] < level + kStackStep && bridge_outline.size() >= 3 &&
+          insideDistance(bridge_outline, q) < 0) {
+        for (size_t l = 0; l < legs.size() && leg == legs.size(); ++l) {
+          if (leg_outlines[l].size() >= 3 && insideDistance(leg_outlines[l], q) > -kBridgeLink)
+            leg = l;
+        }
+      }
+      if (leg < legs.size())
+        legs[leg].push_back(static_cast<int>(i));
+      else
+        rest.push_back(static_cast<int>(i));
+    }
+    std::vector<CloudPtr> out;
+    for (const std::vector<int>& leg : legs) out.push_back(std::make_shared<Cloud>(cloud, leg));
+    if (static_cast<int>(rest.size()) < min_points) return {part};
+    out.push_back(std::make_shared<Cloud>(cloud, rest));
+    for (CloudPtr& piece : out) {
+      piece->header = cloud.header;
+      piece->is_dense = true;
+    }
+    return out;
+  }
+  return {part};
+}
+
 }  // namespace
 
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
@@ -721,10 +827,21 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
     // What may rest on a part or stand beside it: every object's points, else the cluster's.
     const Cloud& surroundings = scene ? *scene : *cluster;
-    for (const CloudPtr& part : parts) {
+    for (const CloudPtr& stack_part : parts) {
+      // A pile LCCP did not part (a box lying across two) comes apart under its bridge first;
+      // its pieces are a side-by-side group, so the joins leave the legs apart.
+      const std::vector<CloudPtr> bridge =
+          parts.size() == 1 && mayHoldAStack(*stack_part, table, params)
+              ? splitUnderABridge(stack_part, table, surroundings, min_points)
+              : std::vector<CloudPtr>{stack_part};
+      if (bridge.size() > 1) {
+        for (const CloudPtr& object : bridge) out.emplace_back(object, group);
+        ++group;
+        continue;
+      }
       const std::vector<CloudPtr> objects =
-          joinTopsCutByAnObjectOnThem(splitUnderTopFaces(part, table, min_points), surroundings,
-                                      table, smear, stackEvidencePoints(params));
+          joinTopsCutByAnObjectOnThem(splitUnderTopFaces(stack_part, table, min_points),
+                                      surroundings, table, smear, stackEvidencePoints(params));
       for (const CloudPtr& object : objects)
         out.emplace_back(object, objects.size() > 1 ? group : -1);
       ++group;
