@@ -576,12 +576,13 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
 namespace {
 
 // The LCCP parts of a cluster that can hold a stack; the cluster itself when it cannot.
+// `may_hold_a_stack` tells whether the cluster was looked at (mayHoldAStack).
 std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
-                                 const ClusteringParams& params, int min_points) {
-  if (static_cast<int>(cluster->size()) < 2 * min_points ||
-      !mayHoldAStack(*cluster, table, params)) {
-    return {cluster};
-  }
+                                 const ClusteringParams& params, int min_points,
+                                 bool& may_hold_a_stack) {
+  may_hold_a_stack =
+      static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
+  if (!may_hold_a_stack) return {cluster};
   ConvexParts convex_parts = convexParts(cluster, params);
   // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
   GridSearch<Point> tree(kVoteSearchCell, false);
@@ -712,9 +713,8 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
 // top down to kStackStep above the table; pieces link within kBridgeLink.
 constexpr float kBridgeSliceStep = 0.005f;  // [m]
 constexpr float kBridgeLink = 0.015f;       // [m]
-// Something standing within this of the part, lower than the slice, may hide the middle of a
-// single object's lower part and make two pieces of it (OSD's occluded scenes): no split then.
-constexpr float kBridgeClearance = 0.05f;  // [m]
+// A line of sight to the gap between the legs is clear up to this short of it [m].
+constexpr float kBridgeClearance = 0.03f;
 
 // The part's pieces under a bridge: the legs (each piece of the highest slice with two pieces of
 // at least `min_points`), and what lies on them (the rest); the part itself otherwise.
@@ -723,90 +723,127 @@ std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table
                                         const Cloud& surroundings, int min_points) {
   const Cloud& cloud = *part;
   if (static_cast<int>(cloud.size()) < 3 * min_points) return {part};
+  const TableProjection onTable(table);
   std::vector<float> heights(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i)
     heights[i] = table.signedDistance(cloud[i].getVector3fMap());
   const float top = *std::max_element(heights.begin(), heights.end());
-  for (float level = top - kStackStep; level >= kStackStep; level -= kBridgeSliceStep) {
+  // Slices from the bottom up: a higher slice holds a lower one's points, so its pieces only
+  // join; once one piece is left (at once for a single object), no higher slice parts.
+  float level = 0.0f;
+  std::vector<int> slice_index;
+  std::vector<pcl::Indices> pieces;
+  for (float at = kStackStep; at <= top - kStackStep; at += kBridgeSliceStep) {
     auto slice = std::make_shared<Cloud>();
-    std::vector<int> slice_index;
+    std::vector<int> index;
     for (size_t i = 0; i < cloud.size(); ++i) {
-      if (heights[i] < level) {
+      if (heights[i] < at) {
         slice->push_back(cloud[i]);
-        slice_index.push_back(static_cast<int>(i));
+        index.push_back(static_cast<int>(i));
       }
     }
-    if (static_cast<int>(slice->size()) < 2 * min_points) return {part};
+    if (slice->empty()) continue;
     GridSearch<Point> grid(kBridgeLink, false);
     grid.setInputCloud(slice);
-    std::vector<pcl::Indices> pieces = grid.connectedComponents(kBridgeLink);
-    pieces.erase(std::remove_if(pieces.begin(), pieces.end(),
-                                [&](const pcl::Indices& piece) {
-                                  return static_cast<int>(piece.size()) < min_points;
-                                }),
-                 pieces.end());
-    if (pieces.size() < 2) continue;
-    // Nothing else stands close beside the part below the slice (an occluder in front).
-    const TableProjection onTable(table);
-    std::vector<Eigen::Vector2f> footprint;
-    for (const auto& p : cloud) footprint.push_back(onTable(p));
-    const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(footprint));
-    if (hull.size() < 3) return {part};
-    const auto beside =
-        std::count_if(surroundings.begin(), surroundings.end(), [&](const Point& p) {
-          const float h = table.signedDistance(p.getVector3fMap());
-          const float inside = insideDistance(hull, onTable(p));
-          return h < level && inside < -kBridgeLink && inside > -kBridgeClearance;
-        });
-    if (beside >= min_points / 10) return {part};
-    std::vector<std::vector<int>> legs;
-    std::vector<std::vector<Eigen::Vector2f>> leg_outlines;
-    std::vector<char> in_leg(cloud.size(), 0);
-    for (const pcl::Indices& piece : pieces) {
-      legs.emplace_back();
-      std::vector<Eigen::Vector2f> leg_footprint;
-      for (int k : piece) {
-        legs.back().push_back(slice_index[k]);
-        leg_footprint.push_back(onTable(cloud[slice_index[k]]));
-        in_leg[slice_index[k]] = 1;
-      }
-      leg_outlines.push_back(convexHull2d(std::move(leg_footprint)));
-    }
-    // A leg's top, seen where it sticks out beyond the bridge's top face, lies above the slice:
-    // it goes with the leg (else the leg is cut short and the bridge reaches down to it).
-    std::vector<Eigen::Vector2f> bridge_top;
-    for (size_t i = 0; i < cloud.size(); ++i) {
-      if (heights[i] >= top - kTopBand) bridge_top.push_back(onTable(cloud[i]));
-    }
-    const std::vector<Eigen::Vector2f> bridge_outline = convexHull2d(std::move(bridge_top));
-    std::vector<int> rest;
-    for (size_t i = 0; i < cloud.size(); ++i) {
-      if (in_leg[i]) continue;
-      const Eigen::Vector2f q = onTable(cloud[i]);
-      size_t leg = legs.size();
-      if (heights[i] < level + kStackStep && bridge_outline.size() >= 3 &&
-          insideDistance(bridge_outline, q) < 0) {
-        for (size_t l = 0; l < legs.size() && leg == legs.size(); ++l) {
-          if (leg_outlines[l].size() >= 3 && insideDistance(leg_outlines[l], q) > -kBridgeLink)
-            leg = l;
-        }
-      }
-      if (leg < legs.size())
-        legs[leg].push_back(static_cast<int>(i));
-      else
-        rest.push_back(static_cast<int>(i));
-    }
-    std::vector<CloudPtr> out;
-    for (const std::vector<int>& leg : legs) out.push_back(std::make_shared<Cloud>(cloud, leg));
-    if (static_cast<int>(rest.size()) < min_points) return {part};
-    out.push_back(std::make_shared<Cloud>(cloud, rest));
-    for (CloudPtr& piece : out) {
-      piece->header = cloud.header;
-      piece->is_dense = true;
-    }
-    return out;
+    std::vector<pcl::Indices> components = grid.connectedComponents(kBridgeLink);
+    if (components.size() < 2) break;
+    components.erase(std::remove_if(components.begin(), components.end(),
+                                    [&](const pcl::Indices& piece) {
+                                      return static_cast<int>(piece.size()) < min_points;
+                                    }),
+                     components.end());
+    if (components.size() < 2) continue;
+    level = at;
+    slice_index.swap(index);
+    pieces.swap(components);
   }
-  return {part};
+  if (pieces.size() < 2) return {part};
+  // The camera sees through between the legs: no other object lies on the lines of sight to the
+  // gap between the pieces' nearest points (each piece's nearest to the camera), below the slice.
+  // Pieces of one object whose lower middle another object hides (OSD learn6, learn9: a box
+  // behind a box) have that object on those lines.
+  const Eigen::Vector3f eye = surroundings.sensor_origin_.head<3>();
+  std::vector<Eigen::Vector3f> nearest;
+  for (const pcl::Indices& piece : pieces) {
+    const Point* near = &cloud[slice_index[piece.front()]];
+    for (int k : piece) {
+      const Point& p = cloud[slice_index[k]];
+      if ((p.getVector3fMap() - eye).squaredNorm() < (near->getVector3fMap() - eye).squaredNorm())
+        near = &p;
+    }
+    nearest.push_back(near->getVector3fMap());
+  }
+  // Points of the part itself (the pile's own front edges) hide nothing.
+  GridSearch<Point> own(kBridgeLink, false);
+  own.setInputCloud(part);
+  pcl::Indices same;
+  std::vector<float> distances;
+  auto hidden = [&](const Eigen::Vector3f& gap) {
+    const Eigen::Vector3f ray = gap - eye;
+    const float length = ray.norm();
+    return std::any_of(surroundings.begin(), surroundings.end(), [&](const Point& point) {
+      const Eigen::Vector3f p = point.getVector3fMap() - eye;
+      const float along = p.dot(ray) / length;
+      return along > 0.0f && along < length - kBridgeClearance &&
+             (p - along / length * ray).squaredNorm() < kBridgeLink * kBridgeLink &&
+             own.radiusSearch(point, 1e-4, same, distances, 1) == 0;
+    });
+  };
+  for (size_t a = 0; a < nearest.size(); ++a) {
+    for (size_t b = a + 1; b < nearest.size(); ++b) {
+      const Eigen::Vector3f middle = 0.5f * (nearest[a] + nearest[b]);
+      // Halfway up the slice, on the pieces' front.
+      const Eigen::Vector3f gap =
+          middle - (table.signedDistance(middle) - 0.5f * level) * table.normal;
+      if (hidden(gap)) return {part};
+    }
+  }
+  std::vector<std::vector<int>> legs;
+  std::vector<std::vector<Eigen::Vector2f>> leg_outlines;
+  std::vector<char> in_leg(cloud.size(), 0);
+  for (const pcl::Indices& piece : pieces) {
+    legs.emplace_back();
+    std::vector<Eigen::Vector2f> leg_footprint;
+    for (int k : piece) {
+      legs.back().push_back(slice_index[k]);
+      leg_footprint.push_back(onTable(cloud[slice_index[k]]));
+      in_leg[slice_index[k]] = 1;
+    }
+    leg_outlines.push_back(convexHull2d(std::move(leg_footprint)));
+  }
+  // A leg's top, seen where it sticks out beyond the bridge's top face, lies above the slice:
+  // it goes with the leg (else the leg is cut short and the bridge reaches down to it).
+  std::vector<Eigen::Vector2f> bridge_top;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (heights[i] >= top - kTopBand) bridge_top.push_back(onTable(cloud[i]));
+  }
+  const std::vector<Eigen::Vector2f> bridge_outline = convexHull2d(std::move(bridge_top));
+  std::vector<int> rest;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (in_leg[i]) continue;
+    const Eigen::Vector2f q = onTable(cloud[i]);
+    size_t leg = legs.size();
+    if (heights[i] < level + kStackStep && bridge_outline.size() >= 3 &&
+        insideDistance(bridge_outline, q) < 0) {
+      for (size_t l = 0; l < legs.size() && leg == legs.size(); ++l) {
+        if (leg_outlines[l].size() >= 3 && insideDistance(leg_outlines[l], q) > -kBridgeLink)
+          leg = l;
+      }
+    }
+    if (leg < legs.size())
+      legs[leg].push_back(static_cast<int>(i));
+    else
+      rest.push_back(static_cast<int>(i));
+  }
+  std::vector<CloudPtr> out;
+  for (const std::vector<int>& leg : legs) out.push_back(std::make_shared<Cloud>(cloud, leg));
+  if (static_cast<int>(rest.size()) < min_points) return {part};
+  out.push_back(std::make_shared<Cloud>(cloud, rest));
+  for (CloudPtr& piece : out) {
+    piece->header = cloud.header;
+    piece->is_dense = true;
+  }
+  return out;
 }
 
 }  // namespace
@@ -823,7 +860,9 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     // Stacked objects part at concave seams, then objects side by side in each part under
     // their own top faces (LCCP joins touching objects across a front face they share).
     int group = 0;
-    const std::vector<CloudPtr> parts = splitStack(cluster, table, params, min_points);
+    bool may_hold_a_stack = false;
+    const std::vector<CloudPtr> parts =
+        splitStack(cluster, table, params, min_points, may_hold_a_stack);
     const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
     // What may rest on a part or stand beside it: every object's points, else the cluster's.
     const Cloud& surroundings = scene ? *scene : *cluster;
@@ -831,7 +870,7 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
       // A pile LCCP did not part (a box lying across two) comes apart under its bridge first;
       // its pieces are a side-by-side group, so the joins leave the legs apart.
       const std::vector<CloudPtr> bridge =
-          parts.size() == 1 && mayHoldAStack(*stack_part, table, params)
+          parts.size() == 1 && may_hold_a_stack
               ? splitUnderABridge(stack_part, table, surroundings, min_points)
               : std::vector<CloudPtr>{stack_part};
       if (bridge.size() > 1) {
