@@ -713,8 +713,12 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
 // top down to kStackStep above the table; pieces link within kBridgeLink.
 constexpr float kBridgeSliceStep = 0.005f;  // [m]
 constexpr float kBridgeLink = 0.015f;       // [m]
-// A line of sight to the gap between the legs is clear up to this short of it [m].
+// A line of sight to the gap between the legs is clear up to this short of it [m]: no other
+// object within kBridgeLink of it, and no surface of the part itself crossed (a point within
+// kBridgeSurfaceCrossed: the 5 mm samples of a surface it goes through; a mug's inside lies
+// behind its front wall, the gap under a plank in front of everything).
 constexpr float kBridgeClearance = 0.03f;
+constexpr float kBridgeSurfaceCrossed = 0.005f;
 
 // The part's pieces under a bridge: the legs (each piece of the highest slice with two pieces of
 // at least `min_points`), and what lies on them (the rest); the part itself otherwise.
@@ -747,9 +751,13 @@ std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table
     grid.setInputCloud(slice);
     std::vector<pcl::Indices> components = grid.connectedComponents(kBridgeLink);
     if (components.size() < 2) break;
+    // Legs stand on the table; a mug's handle, cut off by noise, hangs above it.
     components.erase(std::remove_if(components.begin(), components.end(),
                                     [&](const pcl::Indices& piece) {
-                                      return static_cast<int>(piece.size()) < min_points;
+                                      float low = std::numeric_limits<float>::infinity();
+                                      for (int k : piece) low = std::min(low, heights[index[k]]);
+                                      return static_cast<int>(piece.size()) < min_points ||
+                                             low > kStackStep;
                                     }),
                      components.end());
     if (components.size() < 2) continue;
@@ -758,6 +766,10 @@ std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table
     pieces.swap(components);
   }
   if (pieces.size() < 2) return {part};
+  // What lies across has a flat top (a plank): a cup's or mug's inside, seen over its rim, is a
+  // piece apart from its outer wall in every low slice, under a rim that is only a ring.
+  if (!hasFlatTop(cloud, std::vector<uint32_t>(cloud.size(), 0), 0, top, table, onTable))
+    return {part};
   // The camera sees through between the legs: no other object lies on the lines of sight to the
   // gap between the pieces' nearest points (each piece's nearest to the camera), below the slice.
   // Pieces of one object whose lower middle another object hides (OSD learn6, learn9: a box
@@ -773,7 +785,7 @@ std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table
     }
     nearest.push_back(near->getVector3fMap());
   }
-  // Points of the part itself (the pile's own front edges) hide nothing.
+  // Points of the part itself near the line (the pile's own front edges) hide nothing.
   GridSearch<Point> own(kBridgeLink, false);
   own.setInputCloud(part);
   pcl::Indices same;
@@ -784,14 +796,22 @@ std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table
     return std::any_of(surroundings.begin(), surroundings.end(), [&](const Point& point) {
       const Eigen::Vector3f p = point.getVector3fMap() - eye;
       const float along = p.dot(ray) / length;
-      return along > 0.0f && along < length - kBridgeClearance &&
-             (p - along / length * ray).squaredNorm() < kBridgeLink * kBridgeLink &&
-             own.radiusSearch(point, 1e-4, same, distances, 1) == 0;
+      if (!(along > 0.0f && along < length - kBridgeClearance)) return false;
+      const float off = (p - along / length * ray).squaredNorm();
+      return off < kBridgeSurfaceCrossed * kBridgeSurfaceCrossed ||
+             (off < kBridgeLink * kBridgeLink &&
+              own.radiusSearch(point, 1e-4, same, distances, 1) == 0);
     });
   };
   for (size_t a = 0; a < nearest.size(); ++a) {
     for (size_t b = a + 1; b < nearest.size(); ++b) {
       const Eigen::Vector3f middle = 0.5f * (nearest[a] + nearest[b]);
+      // Legs stand side by side across the view; a cup's inside lies behind its front wall.
+      const Eigen::Vector3f apart = nearest[b] - nearest[a];
+      const float along_view = std::abs(apart.dot((middle - eye).normalized()));
+      if (along_view >=
+          (apart - apart.dot((middle - eye).normalized()) * (middle - eye).normalized()).norm())
+        return {part};
       // Halfway up the slice, on the pieces' front.
       const Eigen::Vector3f gap =
           middle - (table.signedDistance(middle) - 0.5f * level) * table.normal;
