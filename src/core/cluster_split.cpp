@@ -55,6 +55,19 @@ float sidewaysSmear(float range, const ClusteringParams& params) {
   return std::max(0.005f, 2.0f * params.split_depth_step * range * range);
 }
 
+// The height above the table of the cloud's highest point.
+float topOf(const Cloud& cloud, const Plane& table) {
+  float top = -std::numeric_limits<float>::infinity();
+  for (const auto& p : cloud) top = std::max(top, table.signedDistance(p.getVector3fMap()));
+  return top;
+}
+
+// Points beside or over another part that show a stack: the lower part of a stack needs
+// split_min_points, a tenth of them beyond the smear is plenty of evidence.
+int stackEvidencePoints(const ClusteringParams& params) {
+  return std::max(10, params.split_min_points / 10);
+}
+
 Eigen::Vector3f centroidOf(const Cloud& cloud) {
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
   for (const auto& p : cloud) centroid += p.getVector3fMap();
@@ -709,8 +722,7 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
 
 bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringParams& params) {
   if (cluster.empty()) return false;
-  float top = -std::numeric_limits<float>::infinity();
-  for (const auto& p : cluster) top = std::max(top, table.signedDistance(p.getVector3fMap()));
+  const float top = topOf(cluster, table);
   const TableProjection onTable(table);
   std::vector<Eigen::Vector2f> top_band;
   for (const auto& p : cluster) {
@@ -719,10 +731,9 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   }
   const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(top_band));
   if (hull.size() < 3) return true;  // a ridge or a spike on top: no footprint to judge by
-  // Depth noise smears a vertical face sideways, more with range; the lower part of a stack
-  // needs split_min_points, a tenth of them beyond the smear is plenty of evidence.
+  // Depth noise smears a vertical face sideways, more with range.
   const float smear = sidewaysSmear(centroidOf(cluster).norm(), params);
-  const int needed = std::max(10, params.split_min_points / 10);
+  const int needed = stackEvidencePoints(params);
   int beside = 0;
   for (const auto& p : cluster) {
     if (table.signedDistance(p.getVector3fMap()) < top - kStackStep &&
@@ -736,12 +747,13 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
 namespace {
 
 // The LCCP parts of a cluster that can hold a stack; the cluster itself when it cannot.
+// `may_hold_a_stack` tells whether the cluster was looked at (mayHoldAStack).
 std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
-                                 const ClusteringParams& params, int min_points) {
-  if (static_cast<int>(cluster->size()) < 2 * min_points ||
-      !mayHoldAStack(*cluster, table, params)) {
-    return {cluster};
-  }
+                                 const ClusteringParams& params, int min_points,
+                                 bool& may_hold_a_stack) {
+  may_hold_a_stack =
+      static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
+  if (!may_hold_a_stack) return {cluster};
   ConvexParts convex_parts = convexParts(cluster, params);
   // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
   GridSearch<Point> tree(kVoteSearchCell, false);
@@ -764,11 +776,273 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
   return out;
 }
 
+// ---- one top face cut in two by an object resting on it (OSD learn19, learn21) ----
+// Whether two objects of one part touch: some point of `a` lies within kTouching of `b`.
+constexpr float kTouching = 0.015f;  // [m]: neighbouring 5 mm voxels of one surface, and noise
+bool touch(const Cloud& a, const CloudConstPtr& b) {
+  GridSearch<Point> search(kTouching, false);
+  search.setInputCloud(b);
+  pcl::Indices near;
+  std::vector<float> distances;
+  return std::any_of(a.begin(), a.end(), [&](const Point& p) {
+    return search.radiusSearch(p, kTouching, near, distances, 1) > 0;
+  });
+}
+
+// The footprint on the table of a cloud's top band (its points within kTopBand of its top).
+std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const Plane& table,
+                                            const TableProjection& onTable) {
+  std::vector<Eigen::Vector2f> band;
+  for (const auto& p : cloud) {
+    if (table.signedDistance(p.getVector3fMap()) >= top - kTopBand) band.push_back(onTable(p));
+  }
+  return convexHull2d(std::move(band));
+}
+
+// Objects the top-face split made of one stack part that are one object: a box with another
+// lying across its top shows its own top on both sides of the upper one, two level faces at
+// the same height (within kTopStep) that the face split takes for two objects side by side. They
+// are joined again when they touch (the lower box's front face runs on under the upper one) and
+// the gap between their tops (their joint outline outside both, beyond `smear`) is covered:
+// points of `surroundings` (which holds the objects' own) rise above them over at least `needed`
+// points, and every footprint cell of the gap where other points than their own are seen lower
+// has such a point over it (kMaxUncoveredGapCells aside): what cut the face lies across it. Two
+// boxes of one height standing side by side have nothing over the gap between them; the gap between
+// diagonal neighbours in a block holds the other two, one of them seen lower.
+constexpr int kMaxUncoveredGapCells = 2;
+std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
+                                                  const Cloud& surroundings, const Plane& table,
+                                                  float smear, int needed) {
+  if (objects.size() < 2) return objects;
+  const TableProjection onTable(table);
+  auto coveredGap = [&](const Cloud& a, const Cloud& b) {
+    const float top_a = topOf(a, table), top_b = topOf(b, table);
+    if (std::abs(top_a - top_b) > kTopStep) return false;
+    const std::vector<Eigen::Vector2f> outline_a = topBandOutline(a, top_a, table, onTable);
+    const std::vector<Eigen::Vector2f> outline_b = topBandOutline(b, top_b, table, onTable);
+    std::vector<Eigen::Vector2f> both = outline_a;
+    both.insert(both.end(), outline_b.begin(), outline_b.end());
+    const std::vector<Eigen::Vector2f> joint = convexHull2d(std::move(both));
+    if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
+    const float top = std::max(top_a, top_b);
+    // Per footprint cell of the gap: points over the tops and points lower, beyond kTopStep
+    // (at their level lie strips of their own top that went with the object on it), counted +1
+    // from the surroundings, -1 from the objects themselves.
+    struct GapCell {
+      int over = 0, not_over = 0;
+    };
+    std::unordered_map<uint64_t, GapCell> gap;
+    int over = 0;
+    auto visit = [&](const Cloud& cloud, int sign) {
+      for (const auto& p : cloud) {
+        const float h = table.signedDistance(p.getVector3fMap());
+        const Eigen::Vector2f q = onTable(p);
+        if (std::abs(h - top) <= kTopStep || insideDistance(joint, q) < 0 ||
+            insideDistance(outline_a, q) >= -smear || insideDistance(outline_b, q) >= -smear)
+          continue;
+        const Eigen::Vector2f c = q / kFootprintCell;
+        GapCell& cell =
+            gap[voxel_key::pack(voxel_key::floorToInt(c.x()), voxel_key::floorToInt(c.y()), 0)];
+        if (h > top) {
+          cell.over += sign;
+          over += sign;
+        } else {
+          cell.not_over += sign;
+        }
+      }
+    };
+    visit(surroundings, 1);
+    visit(a, -1);
+    visit(b, -1);
+    const auto uncovered = std::count_if(gap.begin(), gap.end(), [](const auto& cell) {
+      return cell.second.not_over > 0 && cell.second.over <= 0;
+    });
+    return over >= needed && uncovered <= kMaxUncoveredGapCells;
+  };
+  for (bool joined = true; joined;) {
+    joined = false;
+    for (size_t i = 0; i < objects.size() && !joined; ++i) {
+      for (size_t j = i + 1; j < objects.size() && !joined; ++j) {
+        if (!coveredGap(*objects[i], *objects[j]) || !touch(*objects[i], objects[j])) continue;
+        auto merged = std::make_shared<Cloud>(*objects[i]);
+        *merged += *objects[j];
+        objects[i] = merged;
+        objects.erase(objects.begin() + j);
+        joined = true;
+      }
+    }
+  }
+  return objects;
+}
+
+// ---- a box lying across two others (issue 15) ----
+// The plank's front face continues the legs' front faces nearly flush, and LCCP joins the pile
+// into one convex part; no top face parts them either (the legs' tops lie under the plank). What
+// tells the pile apart is below the plank: horizontal slices of the part under its bottom fall
+// into separate pieces (the legs), slices through the plank are one. A single box, can or cup
+// is one piece at every level. Slices are taken every kBridgeSliceStep from kStackStep under the
+// top down to kStackStep above the table; pieces link within kBridgeLink.
+constexpr float kBridgeSliceStep = 0.005f;  // [m]
+constexpr float kBridgeLink = 0.015f;       // [m]
+// A line of sight to the gap between the legs is clear up to this short of it [m]: no other
+// object within kBridgeLink of it, and no surface of the part itself crossed (a point within
+// kBridgeSurfaceCrossed: the 5 mm samples of a surface it goes through; a mug's inside lies
+// behind its front wall, the gap under a plank in front of everything).
+constexpr float kBridgeClearance = 0.03f;
+constexpr float kBridgeSurfaceCrossed = 0.005f;
+
+// The part's pieces under a bridge: the legs (each piece of the highest slice with two pieces of
+// at least `min_points`), and what lies on them (the rest); the part itself otherwise.
+// `surroundings` holds the part's points and the objects around it.
+std::vector<CloudPtr> splitUnderABridge(const CloudPtr& part, const Plane& table,
+                                        const Cloud& surroundings, int min_points) {
+  const Cloud& cloud = *part;
+  if (static_cast<int>(cloud.size()) < 3 * min_points) return {part};
+  const TableProjection onTable(table);
+  std::vector<float> heights(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i)
+    heights[i] = table.signedDistance(cloud[i].getVector3fMap());
+  const float top = *std::max_element(heights.begin(), heights.end());
+  // Slices from the bottom up: a higher slice holds a lower one's points, so its pieces only
+  // join; once one piece is left (at once for a single object), no higher slice parts.
+  float level = 0.0f;
+  std::vector<int> slice_index;
+  std::vector<pcl::Indices> pieces;
+  for (float at = kStackStep; at <= top - kStackStep; at += kBridgeSliceStep) {
+    auto slice = std::make_shared<Cloud>();
+    std::vector<int> index;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      if (heights[i] < at) {
+        slice->push_back(cloud[i]);
+        index.push_back(static_cast<int>(i));
+      }
+    }
+    if (slice->empty()) continue;
+    GridSearch<Point> grid(kBridgeLink, false);
+    grid.setInputCloud(slice);
+    std::vector<pcl::Indices> components = grid.connectedComponents(kBridgeLink);
+    if (components.size() < 2) break;
+    // Legs stand on the table; a mug's handle, cut off by noise, hangs above it.
+    components.erase(std::remove_if(components.begin(), components.end(),
+                                    [&](const pcl::Indices& piece) {
+                                      float low = std::numeric_limits<float>::infinity();
+                                      for (int k : piece) low = std::min(low, heights[index[k]]);
+                                      return static_cast<int>(piece.size()) < min_points ||
+                                             low > kStackStep;
+                                    }),
+                     components.end());
+    if (components.size() < 2) continue;
+    level = at;
+    slice_index.swap(index);
+    pieces.swap(components);
+  }
+  if (pieces.size() < 2) return {part};
+  // What lies across has a flat top (a plank): a cup's or mug's inside, seen over its rim, is a
+  // piece apart from its outer wall in every low slice, under a rim that is only a ring.
+  if (!hasFlatTop(cloud, std::vector<uint32_t>(cloud.size(), 0), 0, top, table, onTable))
+    return {part};
+  // The camera sees through between the legs: no other object lies on the lines of sight to the
+  // gap between the pieces' nearest points (each piece's nearest to the camera), below the slice.
+  // Pieces of one object whose lower middle another object hides (OSD learn6, learn9: a box
+  // behind a box) have that object on those lines.
+  const Eigen::Vector3f eye = surroundings.sensor_origin_.head<3>();
+  std::vector<Eigen::Vector3f> nearest;
+  for (const pcl::Indices& piece : pieces) {
+    const Point* near = &cloud[slice_index[piece.front()]];
+    for (int k : piece) {
+      const Point& p = cloud[slice_index[k]];
+      if ((p.getVector3fMap() - eye).squaredNorm() < (near->getVector3fMap() - eye).squaredNorm())
+        near = &p;
+    }
+    nearest.push_back(near->getVector3fMap());
+  }
+  // Points of the part itself near the line (the pile's own front edges) hide nothing.
+  GridSearch<Point> own(kBridgeLink, false);
+  own.setInputCloud(part);
+  pcl::Indices same;
+  std::vector<float> distances;
+  auto hidden = [&](const Eigen::Vector3f& gap) {
+    const Eigen::Vector3f ray = gap - eye;
+    const float length = ray.norm();
+    return std::any_of(surroundings.begin(), surroundings.end(), [&](const Point& point) {
+      const Eigen::Vector3f p = point.getVector3fMap() - eye;
+      const float along = p.dot(ray) / length;
+      if (!(along > 0.0f && along < length - kBridgeClearance)) return false;
+      const float off = (p - along / length * ray).squaredNorm();
+      return off < kBridgeSurfaceCrossed * kBridgeSurfaceCrossed ||
+             (off < kBridgeLink * kBridgeLink &&
+              own.radiusSearch(point, 1e-4, same, distances, 1) == 0);
+    });
+  };
+  for (size_t a = 0; a < nearest.size(); ++a) {
+    for (size_t b = a + 1; b < nearest.size(); ++b) {
+      const Eigen::Vector3f middle = 0.5f * (nearest[a] + nearest[b]);
+      // Legs stand side by side across the view; a cup's inside lies behind its front wall.
+      const Eigen::Vector3f apart = nearest[b] - nearest[a];
+      const float along_view = std::abs(apart.dot((middle - eye).normalized()));
+      if (along_view >=
+          (apart - apart.dot((middle - eye).normalized()) * (middle - eye).normalized()).norm())
+        return {part};
+      // Halfway up the slice, on the pieces' front.
+      const Eigen::Vector3f gap =
+          middle - (table.signedDistance(middle) - 0.5f * level) * table.normal;
+      if (hidden(gap)) return {part};
+    }
+  }
+  std::vector<std::vector<int>> legs;
+  std::vector<std::vector<Eigen::Vector2f>> leg_outlines;
+  std::vector<char> in_leg(cloud.size(), 0);
+  for (const pcl::Indices& piece : pieces) {
+    legs.emplace_back();
+    std::vector<Eigen::Vector2f> leg_footprint;
+    for (int k : piece) {
+      legs.back().push_back(slice_index[k]);
+      leg_footprint.push_back(onTable(cloud[slice_index[k]]));
+      in_leg[slice_index[k]] = 1;
+    }
+    leg_outlines.push_back(convexHull2d(std::move(leg_footprint)));
+  }
+  // A leg's top, seen where it sticks out beyond the bridge's top face, lies above the slice:
+  // it goes with the leg (else the leg is cut short and the bridge reaches down to it).
+  std::vector<Eigen::Vector2f> bridge_top;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (heights[i] >= top - kTopBand) bridge_top.push_back(onTable(cloud[i]));
+  }
+  const std::vector<Eigen::Vector2f> bridge_outline = convexHull2d(std::move(bridge_top));
+  std::vector<int> rest;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (in_leg[i]) continue;
+    const Eigen::Vector2f q = onTable(cloud[i]);
+    size_t leg = legs.size();
+    if (heights[i] < level + kStackStep && bridge_outline.size() >= 3 &&
+        insideDistance(bridge_outline, q) < 0) {
+      for (size_t l = 0; l < legs.size() && leg == legs.size(); ++l) {
+        if (leg_outlines[l].size() >= 3 && insideDistance(leg_outlines[l], q) > -kBridgeLink)
+          leg = l;
+      }
+    }
+    if (leg < legs.size())
+      legs[leg].push_back(static_cast<int>(i));
+    else
+      rest.push_back(static_cast<int>(i));
+  }
+  std::vector<CloudPtr> out;
+  for (const std::vector<int>& leg : legs) out.push_back(std::make_shared<Cloud>(cloud, leg));
+  if (static_cast<int>(rest.size()) < min_points) return {part};
+  out.push_back(std::make_shared<Cloud>(cloud, rest));
+  for (CloudPtr& piece : out) {
+    piece->header = cloud.header;
+    piece->is_dense = true;
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params,
-                                          std::vector<int>* side_by_side) {
+                                          std::vector<int>* side_by_side,
+                                          const CloudConstPtr& scene) {
   const int min_points = std::max(1, params.split_min_points);
   std::vector<std::pair<CloudPtr, int>> out;  // part, side-by-side group
   if (!cluster || !(params.split_concavity_deg > 0.0f) || !(params.split_patch_size > 0.0f)) {
@@ -780,10 +1054,30 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     // took a lower neighbour seen over a taller one's top edge for its inside, or a neighbour
     // for a hidden middle (issue 15). A cup's wall (a rim ring), a handle or a box's side cut
     // off by noise has no top face of its own and may still be joined.
-    for (const CloudPtr& part : splitStack(cluster, table, params, min_points)) {
+    constexpr int kSeparateObjects = 0;
+    bool may_hold_a_stack = false;
+    const std::vector<CloudPtr> parts =
+        splitStack(cluster, table, params, min_points, may_hold_a_stack);
+    const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
+    // What may rest on a part or stand beside it: every object's points, else the cluster's.
+    const Cloud& surroundings = scene ? *scene : *cluster;
+    for (const CloudPtr& stack_part : parts) {
+      // A pile LCCP did not part (a box lying across two) comes apart under its bridge first;
+      // its pieces are separate objects, so the joins leave the legs apart.
+      const std::vector<CloudPtr> bridge =
+          parts.size() == 1 && may_hold_a_stack
+              ? splitUnderABridge(stack_part, table, surroundings, min_points)
+              : std::vector<CloudPtr>{stack_part};
+      if (bridge.size() > 1) {
+        for (const CloudPtr& object : bridge) out.emplace_back(object, kSeparateObjects);
+        continue;
+      }
       bool own_top_faces = false;
-      for (const CloudPtr& object : splitUnderTopFaces(part, table, min_points, own_top_faces))
-        out.emplace_back(object, own_top_faces ? 0 : -1);
+      const std::vector<CloudPtr> objects = joinTopsCutByAnObjectOnThem(
+          splitUnderTopFaces(stack_part, table, min_points, own_top_faces), surroundings, table,
+          smear, stackEvidencePoints(params));
+      for (const CloudPtr& object : objects)
+        out.emplace_back(object, own_top_faces ? kSeparateObjects : -1);
     }
   }
   return largestFirst(std::move(out), side_by_side);

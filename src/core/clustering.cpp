@@ -51,7 +51,7 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
     auto cluster = std::make_shared<Cloud>(*input, cluster_indices[i].indices);
     cluster->header = input->header;
     cluster->is_dense = true;
-    parts[i] = table ? splitAtConcaveSeams(cluster, *table, params, &side_by_side[i])
+    parts[i] = table ? splitAtConcaveSeams(cluster, *table, params, &side_by_side[i], input)
                      : std::vector<CloudPtr>{cluster};
   });
   // Side-by-side groups numbered over all clusters.

@@ -499,15 +499,53 @@ TEST_F(PipelineTest, BagReplayMarkersAndTimings) {
   }
 }
 
-// A real OSD scene: the expected number of objects comes out of every frame.
+// Boxes a real scene's labelled points give (~expected_boxes: "edges sorted descending and the
+// centre's height above the table [m]" per box, boxes apart by ';'). Each must be matched by
+// one cube of `objects`, every number within `tolerance`.
+void expectBoxes(const Objects& objects, const std::string& expected_boxes, double tolerance) {
+  const Eigen::Vector3d normal(objects.table.coefficients[0], objects.table.coefficients[1],
+                               objects.table.coefficients[2]);
+  const double d = objects.table.coefficients[3];
+  std::vector<Solid> cubes;
+  for (const Solid& solid : solids(objects)) {
+    if (solid.type == "cube") cubes.push_back(solid);
+  }
+  std::istringstream boxes(expected_boxes);
+  std::string box;
+  while (std::getline(boxes, box, ';')) {
+    std::istringstream numbers(box);
+    std::array<double, 4> want{};  // edges, height of the centre
+    for (double& number : want) ASSERT_TRUE(numbers >> number) << "bad ~expected_boxes: " << box;
+    auto off = [&](const Solid& cube) {
+      double worst = std::abs(normal.dot(cube.center) + d - want[3]);
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(cube.size[k] - want[k]));
+      return worst;
+    };
+    const auto nearest =
+        std::min_element(cubes.begin(), cubes.end(),
+                         [&](const Solid& a, const Solid& b) { return off(a) < off(b); });
+    ASSERT_NE(nearest, cubes.end()) << "no cube for " << box << "; " << describe(objects);
+    EXPECT_LE(off(*nearest), tolerance)
+        << "box " << box << ": nearest cube " << nearest->size[0] << " x " << nearest->size[1]
+        << " x " << nearest->size[2] << ", centre " << normal.dot(nearest->center) + d
+        << " m above the table";
+    cubes.erase(nearest);
+  }
+}
+
+// A real OSD scene: the expected number of objects comes out of every frame, and with
+// ~expected_boxes the boxes' sizes and heights (each on the table or on the box under it).
 TEST_F(PipelineTest, RealSceneExpectedObjectCount) {
   const int expected = static_cast<int>(privateParam("expected_objects", -1));
   ASSERT_GE(expected, 0) << "set ~expected_objects";
+  const std::string expected_boxes = privateParam<std::string>("expected_boxes", "");
   ASSERT_TRUE(waitFor([&] { return objectsReceived() >= 2; }, privateParam("timeout", 40.0)));
   for (size_t i = 0; i < 2; ++i) {
     const ObjectsConstPtr objects = objectsAt(i);
     EXPECT_TRUE(objects->table_found);
     EXPECT_EQ(objectCount(*objects), static_cast<size_t>(expected)) << describe(*objects);
+    if (!expected_boxes.empty())
+      expectBoxes(*objects, expected_boxes, privateParam("box_tolerance", 0.01));
   }
 }
 

@@ -28,9 +28,12 @@ std::vector<CloudPtr> largestFirst(std::vector<std::pair<CloudPtr, int>> parts,
 // heights from `table`); objects side by side where each has a level top face of its own
 // (touching boxes and cans, issue 15). `side_by_side`, when given, gets one entry per part: parts
 // each under a level top face of its own share a number >= 0 (separate objects: the joins of
-// cluster_join.h must not join them again), other parts -1.
+// cluster_join.h must not join them again), other parts -1. `scene`, when given, holds the
+// points of every object on the table: a box whose top another object (of any cluster) lies
+// across shows two level faces, and stays one object.
 std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& table,
                                           const ClusteringParams& params,
-                                          std::vector<int>* side_by_side = nullptr);
+                                          std::vector<int>* side_by_side = nullptr,
+                                          const CloudConstPtr& scene = nullptr);
 
 }  // namespace tabletop_shapes
