@@ -236,6 +236,10 @@ constexpr size_t kMinTopCells = 20;
 // Side by side, tops at least this far apart [m]: the halves of one cup's rim or one box's top
 // cut apart by noise end at the same height within a few millimetres.
 constexpr float kTopStep = 0.01f;
+// The two halves of one top cut by an object lying across it end within this of each other [m]
+// (learn19 / learn21: 3-4 mm apart); at kTopStep two boxes of a block meeting at a corner,
+// tops 8-9 mm apart, a taller neighbour over the corner, were joined.
+constexpr float kOneTopFace = 0.006f;
 
 // Whether the part has a top face of its own covering most of its footprint, as the top of a
 // box or can does (its sides project onto the top's edge). A bowl's or mug's rim is a thin ring
@@ -817,7 +821,7 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
   const TableProjection onTable(table);
   auto coveredGap = [&](const Cloud& a, const Cloud& b) {
     const float top_a = topOf(a, table), top_b = topOf(b, table);
-    if (std::abs(top_a - top_b) > kTopStep) return false;
+    if (std::abs(top_a - top_b) > kOneTopFace) return false;
     const std::vector<Eigen::Vector2f> outline_a = topBandOutline(a, top_a, table, onTable);
     const std::vector<Eigen::Vector2f> outline_b = topBandOutline(b, top_b, table, onTable);
     std::vector<Eigen::Vector2f> both = outline_a;
