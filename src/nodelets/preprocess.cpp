@@ -14,7 +14,7 @@
 //   (the answers' stamps free their places; ros/frame_admission.h). Others are answered at
 //   once on `objects` and counted as `frames skipped: chain busy` on /diagnostics.
 // Parameters: cfg/Preprocess.cfg (dynamic_reconfigure, with max_frames_in_flight and
-//             in_flight_timeout); ~queue_size (int, 1);
+//             in_flight_timeout); ~queue_size (int, 4);
 //             ~max_points (int, 4000000): larger clouds are skipped with a warning.
 #include "tabletop_shapes/core/pcd_reader.h"
 #include "tabletop_shapes/core/preprocess.h"
@@ -66,7 +66,9 @@ class PreprocessNodelet : public nodelet::Nodelet {
     publisher_ = node.advertise<Cloud>("preprocessed", 1);
     view_publisher_ = node.advertise<View>("view", 5);
     skipped_publisher_ = node.advertise<Objects>("objects", 5);
-    const int queue_size = private_node.param("queue_size", 1);
+    // Deeper than one: a frame that comes while the last one is read or preprocessed waits
+    // here and is answered (admitted or "chain busy"); roscpp drops an overflow unanswered.
+    const int queue_size = private_node.param("queue_size", 4);
     const int max_points = private_node.param("max_points", static_cast<int>(kDefaultMaxPoints));
     if (max_points < 1) {
       NODELET_ERROR("~max_points must be positive, got %d; using %d", max_points,
