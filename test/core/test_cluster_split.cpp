@@ -254,12 +254,19 @@ TEST(ClusterSplit, TouchingBoxesOfNearlyEqualHeightComeApart) {
   expectPartsMatch(split(together(boxes)), boxes);
 }
 
-TEST(ClusterSplit, CanTouchingABoxComesApart) {
+// A box 10 x 9 cm and a can 9 cm across 2 mm beside it; the can's side in the gap is hidden
+// below the box's top.
+std::vector<CloudPtr> canBesideABox(float box_height, float can_height) {
   const synthetic::Sampler s = synthetic::voxelGridSampler();
-  const CloudPtr box = synthetic::box({0.10f, 0.09f, 0.16f}, {0.0f, 0.0f}, 0.0f, s);
-  CloudPtr can = synthetic::roundObject(0.045f, 0.045f, 0.10f, {0.097f, 0.0f}, s);
-  can = withoutGapFace(can, 0.0f, 0.056f, -1.0f, 1.0f, 0.16f);  // its side in the gap
-  expectPartsMatch(split(together({box, can})), {box, can});
+  const CloudPtr box = synthetic::box({0.10f, 0.09f, box_height}, {0.0f, 0.0f}, 0.0f, s);
+  CloudPtr can = synthetic::roundObject(0.045f, 0.045f, can_height, {0.097f, 0.0f}, s);
+  can = withoutGapFace(can, 0.0f, 0.056f, -1.0f, 1.0f, box_height);
+  return {box, can};
+}
+
+TEST(ClusterSplit, CanTouchingABoxComesApart) {
+  const std::vector<CloudPtr> objects = canBesideABox(0.16f, 0.10f);
+  expectPartsMatch(split(together(objects)), objects);
 }
 
 TEST(ClusterSplit, TouchingBoxesWithTopsWithinACentimetreComeApart) {
@@ -291,11 +298,8 @@ TEST(ClusterSplit, BoxesWithOneFrontFaceComeApart) {
 }
 
 TEST(ClusterSplit, CanTouchingABoxOfNearlyItsHeightComesApart) {
-  const synthetic::Sampler s = synthetic::voxelGridSampler();
-  const CloudPtr box = synthetic::box({0.10f, 0.09f, 0.10f}, {0.0f, 0.0f}, 0.0f, s);
-  CloudPtr can = synthetic::roundObject(0.045f, 0.045f, 0.092f, {0.097f, 0.0f}, s);
-  can = withoutGapFace(can, 0.0f, 0.056f, -1.0f, 1.0f, 0.10f);  // its side in the gap
-  expectPartsMatch(split(together({box, can})), {box, can});
+  const std::vector<CloudPtr> objects = canBesideABox(0.10f, 0.092f);
+  expectPartsMatch(split(together(objects)), objects);
 }
 
 // Two cans of the same height 2 mm apart: one level region over both tops, whose outline
