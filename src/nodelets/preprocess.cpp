@@ -11,16 +11,18 @@
 //             also for a frame refused because the chain is busy ("skipped: chain busy ...")
 // Admission: a frame is taken in only while fewer than ~max_frames_in_flight frames are
 //   between here and the chain's `objects` output, which this nodelet also subscribes to
-//   (the answers' stamps free their places; ros/frame_admission.h). Others are answered at
+//   (the answers' stamps free their places; stages in the same manager free them before
+//   publishing: ros/frame_admission.h). Others are answered at
 //   once on `objects` and counted as `frames skipped: chain busy` on /diagnostics.
 // Parameters: cfg/Preprocess.cfg (dynamic_reconfigure, with max_frames_in_flight and
 //             in_flight_timeout); ~queue_size (int, 4);
 //             ~max_points (int, 4000000): larger clouds are skipped with a warning.
 #include "tabletop_shapes/core/pcd_reader.h"
 #include "tabletop_shapes/core/preprocess.h"
+#include "tabletop_shapes/ros/answer_publisher.h"
 #include "tabletop_shapes/ros/cloud_input.h"
-#include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/frame_admission.h"
+#include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/reconfigure.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/PreprocessConfig.h"
@@ -39,6 +41,11 @@
 namespace tabletop_shapes {
 
 class PreprocessNodelet : public nodelet::Nodelet {
+ public:
+  ~PreprocessNodelet() override {
+    if (!answers_topic_.empty()) bridge::unregisterAdmission(answers_topic_, &admission_);
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle& node = getNodeHandle();
@@ -65,7 +72,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
     });
     publisher_ = node.advertise<Cloud>("preprocessed", 1);
     view_publisher_ = node.advertise<View>("view", 5);
-    skipped_publisher_ = node.advertise<Objects>("objects", 5);
+    skipped_publisher_ = bridge::advertiseAnswers(node);
     // Deeper than one: a frame that comes while the last one is read or preprocessed waits
     // here and is answered (admitted or "chain busy"); roscpp drops an overflow unanswered.
     const int queue_size = private_node.param("queue_size", 4);
@@ -87,6 +94,10 @@ class PreprocessNodelet : public nodelet::Nodelet {
     // same manager (no copy); the queue is deep because missing one costs the timeout.
     answers_subscriber_ =
         getMTNodeHandle().subscribe("objects", 50, &PreprocessNodelet::onAnswer, this);
+    // Stages in this manager free a frame's place before they publish its answer; the topic
+    // still brings the answers of stages in other processes.
+    answers_topic_ = answers_subscriber_.getTopic();
+    bridge::registerAdmission(answers_topic_, &admission_);
   }
 
   void onAnswer(const ObjectsConstPtr& objects) {
@@ -124,7 +135,8 @@ class PreprocessNodelet : public nodelet::Nodelet {
   void skip(const std_msgs::Header& header, const std::string& reason) {
     monitor_->frameSkipped(reason,
                            {bridge::Problem::Level::Error, "skipping input cloud: " + reason, {}});
-    skipped_publisher_.publish(bridge::skippedFrameObjects(header, "invalid cloud: " + reason));
+    bridge::publishAnswer(skipped_publisher_,
+                          bridge::skippedFrameObjects(header, "invalid cloud: " + reason));
   }
 
   void onCloud(const boost::shared_ptr<const bridge::InputCloud>& input) {
@@ -173,6 +185,7 @@ class PreprocessNodelet : public nodelet::Nodelet {
   uint32_t published_ = 0;  // frames published: the seq of the next stage's input
   // Limits set by the reconfigure callback, which runs before the first frame.
   bridge::FrameAdmission admission_{1, 2.0};
+  std::string answers_topic_;  // where admission_ is registered (empty: not yet)
   ros::Publisher publisher_, view_publisher_, skipped_publisher_;
   ros::Subscriber subscriber_, answers_subscriber_;
 };

@@ -19,6 +19,7 @@
 //     back (a looped bag) are warned about (ros/frame_transforms.h)
 //   ~tf_timeout (double, 0.1 s), ~queue_size (int, 5)
 #include "tabletop_shapes/core/object_fitting.h"
+#include "tabletop_shapes/ros/answer_publisher.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/frame_transforms.h"
 #include "tabletop_shapes/ros/reconfigure.h"
@@ -72,7 +73,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
       params_ = params.shapes;
     });
 
-    objects_publisher_ = node.advertise<Objects>("objects", 5);
+    objects_publisher_ = bridge::advertiseAnswers(node);
     markers_publisher_ = node.advertise<visualization_msgs::MarkerArray>("markers", 5);
     cubes_publisher_ = node.advertise<Cube>("cubes", 10);
     cylinders_publisher_ = node.advertise<Cylinder>("cylinders", 10);
@@ -156,7 +157,8 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
         // tf's text holds times: throttle on the frames, not on the whole text.
         monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
                                         "no transform to " + output_frame_});
-        objects_publisher_.publish(bridge::skippedFrameObjects(objects.header, reason));
+        bridge::publishAnswer(objects_publisher_,
+                              bridge::skippedFrameObjects(objects.header, reason));
         return;
       }
     }
@@ -190,7 +192,7 @@ class ShapeEstimationNodelet : public nodelet::Nodelet {
     const Objects& objects = *shared;
     visualization_msgs::MarkerArray markers;
     marker_count_ = bridge::buildMarkers(objects, marker_count_, markers);
-    objects_publisher_.publish(shared);
+    bridge::publishAnswer(objects_publisher_, shared);
     markers_publisher_.publish(markers);
     if (cubes_publisher_.getNumSubscribers() > 0) {
       for (const Cube& cube : objects.cubes) cubes_publisher_.publish(cube);

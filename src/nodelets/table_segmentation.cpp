@@ -24,6 +24,7 @@
 //   ~queue_size (int, 1)
 #include "tabletop_shapes/core/table_segmentation.h"
 #include "tabletop_shapes/core/up_direction.h"
+#include "tabletop_shapes/ros/answer_publisher.h"
 #include "tabletop_shapes/ros/conversions.h"
 #include "tabletop_shapes/ros/frame_transforms.h"
 #include "tabletop_shapes/ros/reconfigure.h"
@@ -88,7 +89,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
     table_publisher_ = node.advertise<Table>("table", 5);
     objects_publisher_ = node.advertise<Cloud>("objects_cloud", 5);
     inliers_publisher_ = node.advertise<Cloud>("table_inliers", 1);
-    skipped_publisher_ = node.advertise<Objects>("objects", 5);
+    skipped_publisher_ = bridge::advertiseAnswers(node);
     const int queue_size = private_node.param("queue_size", 1);
     subscriber_ =
         node.subscribe("preprocessed", queue_size, &TableSegmentationNodelet::onCloud, this);
@@ -161,7 +162,7 @@ class TableSegmentationNodelet : public nodelet::Nodelet {
       // tf's text holds times: throttle on the frames, not on the whole text.
       monitor_->frameSkipped(reason, {bridge::Problem::Level::Warn, "skipping frame: " + reason,
                                       "no transform from " + up_frame_});
-      skipped_publisher_.publish(bridge::skippedFrameObjects(header, reason));
+      bridge::publishAnswer(skipped_publisher_, bridge::skippedFrameObjects(header, reason));
       return false;
     }
   }

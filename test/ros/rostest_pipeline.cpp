@@ -184,6 +184,14 @@ class PipelineTest : public ::testing::Test {
     }
     return nullptr;
   }
+  // The reason of any answer (busy ones included) to the frame stamped `stamp`, for messages.
+  std::string answerTo(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const ObjectsConstPtr& objects : all_answers_) {
+      if (objects->header.stamp == stamp) return "\"" + objects->reason + "\"";
+    }
+    return "none";
+  }
   // The ground truth published with the frame stamped `stamp` (null while not received).
   ObjectsConstPtr truthFor(const ros::Time& stamp) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -908,7 +916,8 @@ TEST_F(PipelineTest, EveryFrameIsAnsweredOrCountedAsDropped) {
     cloud.header.seq = ++seq;
     const ros::Time stamp = wholeMicroseconds(ros::Time::now());
     scene_ = cloud;
-    ASSERT_TRUE(sendFrame(stamp, 30.0)) << "frame " << seq << " sent alone got no answer";
+    ASSERT_TRUE(sendFrame(stamp, 30.0))
+        << "frame " << seq << " sent alone got no result; its answer: " << answerTo(stamp);
     if (i >= 3) alone_ms.push_back(latencyOf(stamp));
   }
   std::sort(alone_ms.begin(), alone_ms.end());

@@ -129,4 +129,41 @@ TEST(FrameAdmission, TheBusyReasonNamesTheFramesInFlight) {
   EXPECT_FALSE(isChainBusyReason(""));
 }
 
+// A stage in the manager frees the place before publishing; the same answer heard on the topic
+// afterwards must not free a second frame with the same stamp (a looped bag repeats stamps).
+TEST(FrameAdmission, AnAnswerCountedInProcessIsNotCountedAgainOnTheTopic) {
+  FrameAdmission admission(2, 2.0);
+  ASSERT_TRUE(admission.admit(7000, t0).admitted);
+  ASSERT_TRUE(admission.admit(7000, t0 + milliseconds(33)).admitted);
+  EXPECT_TRUE(admission.answeredInProcess(7000));
+  EXPECT_EQ(admission.inFlight(), 1u);
+  EXPECT_FALSE(admission.answered(7000)) << "the topic copy of the answer already counted";
+  EXPECT_EQ(admission.inFlight(), 1u);
+  EXPECT_TRUE(admission.answered(7000)) << "the second frame's own answer, heard on the topic";
+  EXPECT_EQ(admission.inFlight(), 0u);
+  // An in-process answer to a frame never admitted is no answer to count later either.
+  EXPECT_FALSE(admission.answeredInProcess(8000));
+  ASSERT_TRUE(admission.admit(8000, t0 + milliseconds(66)).admitted);
+  EXPECT_TRUE(admission.answered(8000));
+}
+
+TEST(FrameAdmission, TheRegistryFreesThePlaceOfAdmissionsOnTheAnswersTopicOnly) {
+  using tabletop_shapes::bridge::frameAnsweredInProcess;
+  using tabletop_shapes::bridge::registerAdmission;
+  using tabletop_shapes::bridge::unregisterAdmission;
+  FrameAdmission chain(1, 2.0), other_chain(1, 2.0);
+  registerAdmission("/tabletop_shapes/objects", &chain);
+  registerAdmission("/other/objects", &other_chain);
+  ASSERT_TRUE(chain.admit(1000, t0).admitted);
+  ASSERT_TRUE(other_chain.admit(1000, t0).admitted);
+  frameAnsweredInProcess("/tabletop_shapes/objects", 1000);
+  EXPECT_EQ(chain.inFlight(), 0u);
+  EXPECT_EQ(other_chain.inFlight(), 1u) << "another chain's answers topic";
+  EXPECT_TRUE(chain.admit(2000, t0 + milliseconds(33)).admitted) << "the next frame at once";
+  unregisterAdmission("/tabletop_shapes/objects", &chain);
+  frameAnsweredInProcess("/tabletop_shapes/objects", 2000);
+  EXPECT_EQ(chain.inFlight(), 1u) << "unregistered: answers reach it by the topic only";
+  unregisterAdmission("/other/objects", &other_chain);
+}
+
 }  // namespace

@@ -7,6 +7,10 @@
 // a later queue lost it) is given up after a timeout, so that admission cannot stall.
 // ROS-free (stamps in microseconds, a steady clock passed in) and thread-safe: the nodelet
 // admits on its input queue and hears answers on another thread.
+// In one manager an answer frees its frame's place before it is published (the registry
+// below): heard only on the topic, it freed the place on a worker thread some time after a
+// consumer in another process had it, and a frame that consumer sent at once was refused as
+// busy (seen in CI: a frame sent after the last one's answer got "chain busy").
 #pragma once
 
 #include <chrono>
@@ -53,11 +57,15 @@ class FrameAdmission {
   // are given up first, then it is admitted while fewer than the limit are in flight.
   Decision admit(uint64_t stamp_us, Clock::time_point now);
 
-  // An `objects` message stamped `stamp_us`: the oldest frame in flight with that stamp is
-  // done. False (nothing changes) when no frame in flight has it: an answer to a frame never
-  // admitted (refused as busy or invalid), or one already given up on. Stamps need not
-  // increase: a looped bag's stamps go back, and a publisher may repeat a stamp.
+  // An `objects` message stamped `stamp_us` heard on the topic: the oldest frame in flight
+  // with that stamp is done. False (nothing changes) when no frame in flight has it: an answer
+  // to a frame never admitted (refused as busy or invalid), one already given up on, or one
+  // already counted by answeredInProcess. Stamps need not increase: a looped bag's stamps go
+  // back, and a publisher may repeat a stamp.
   bool answered(uint64_t stamp_us);
+  // The same answer, told by a stage of this process just before it publishes it: the frame
+  // is done at once, and the answer heard on the topic later frees nothing more.
+  bool answeredInProcess(uint64_t stamp_us);
 
   size_t inFlight() const;
 
@@ -74,7 +82,20 @@ class FrameAdmission {
   size_t max_in_flight_;
   Clock::duration timeout_;
   std::deque<Frame> in_flight_;  // in the order admitted
+  // Stamps answered in process whose topic copy has not been heard yet (bounded: a copy lost
+  // at the subscriber's queue must not make this grow).
+  std::deque<uint64_t> heard_in_process_;
+  bool removeInFlight(uint64_t stamp_us);
 };
+
+// The admissions of this process by the resolved name of the topic their answers come on
+// (Preprocess's `objects`), so that a stage publishing an answer there frees the frame's
+// place first (publishAnswer in ros/answer_publisher.h). Thread-safe; an admission is
+// removed before it is destroyed.
+void registerAdmission(const std::string& answer_topic, FrameAdmission* admission);
+void unregisterAdmission(const std::string& answer_topic, const FrameAdmission* admission);
+// Frees the place of the frame stamped `stamp_us` in every admission answered on the topic.
+void frameAnsweredInProcess(const std::string& answer_topic, uint64_t stamp_us);
 
 }  // namespace bridge
 }  // namespace tabletop_shapes
