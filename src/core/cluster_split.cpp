@@ -21,6 +21,8 @@ namespace tabletop_shapes {
 namespace {
 
 constexpr float kVoteSearchCell = 0.01f;  // GridSearch cell of the neighbour votes [m]
+// LCCP segments of at most this many supervoxels join a neighbour (LCCP's min segment size).
+constexpr size_t kMaxSmallSegment = 3;
 // Parts whose tops lie within this of each other are one object (see mergeUnseparatedParts).
 constexpr float kStackStep = 0.02f;  // [m]
 
@@ -85,6 +87,37 @@ float supervoxelResolution(float range, const ClusteringParams& params) {
   return std::max(base, 1.5f * params.split_depth_step * range * range);
 }
 
+// LCCP's merge of small segments (pcl::LCCPSegmentation::mergeSmallSegments), with the
+// supervoxels visited in label order: a segment of at most `max_supervoxels` supervoxels joins
+// its largest neighbouring segment (the last of equal ones), unless that one joined another
+// before; repeated while any joins.
+void mergeSmallSegments(const std::multimap<uint32_t, uint32_t>& adjacency, size_t max_supervoxels,
+                        std::map<uint32_t, uint32_t>& part_of_supervoxel) {
+  std::set<uint32_t> joined;
+  for (bool merged = true; merged;) {
+    merged = false;
+    std::map<uint32_t, size_t> size;
+    std::map<uint32_t, std::set<uint32_t>> neighbours;
+    for (const auto& [supervoxel, part] : part_of_supervoxel) ++size[part];
+    for (const auto& [a, b] : adjacency) {
+      const uint32_t part_a = part_of_supervoxel[a], part_b = part_of_supervoxel[b];
+      if (part_a != part_b) neighbours[part_a].insert(part_b), neighbours[part_b].insert(part_a);
+    }
+    for (auto& [supervoxel, part] : part_of_supervoxel) {
+      if (size[part] > max_supervoxels) continue;
+      uint32_t largest = part;
+      for (const uint32_t other : neighbours[part]) {
+        if (size[other] >= size[largest]) largest = other;
+      }
+      if (largest == part || joined.count(largest)) continue;
+      // The rest of `part` follows (its size stays as it was until the next round).
+      if (joined.insert(part).second) size[largest] += size[part];
+      part = largest;
+      merged = true;
+    }
+  }
+}
+
 ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& params) {
   const float voxel = supervoxelResolution(centroidOf(*cluster).norm(), params);
   pcl::SupervoxelClustering<Point> supervoxel(voxel, std::max(params.split_patch_size, 2 * voxel));
@@ -103,18 +136,29 @@ ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& pa
   // Extended convexity (k = 1): a seam is concave only when the patches around it agree, which
   // keeps noisy box faces together; the sanity and smoothness checks over-split real boxes.
   lccp.setKFactor(1);
-  lccp.setMinSegmentSize(3);
+  // PCL's graph keeps its supervoxels in the order of their heap addresses (boost setS), and
+  // LCCP visits them in that order when it numbers its segments and when it merges the small
+  // ones, whose outcome depends on the order. The addresses change with the threads'
+  // allocations, and so did the objects from run to run. So LCCP only groups (the groups do not
+  // depend on the order), and the segments are numbered and merged here in supervoxel order.
+  lccp.setMinSegmentSize(0);
   lccp.setInputSupervoxels(patches, adjacency);
   lccp.segment();
-  pcl::PointCloud<pcl::PointXYZL>::Ptr labelled = supervoxel.getLabeledCloud();
-  lccp.relabelCloud(*labelled);
-  ConvexParts parts;
-  parts.labels.assign(cluster->size(), 0);
-  for (size_t i = 0; i < parts.labels.size() && i < labelled->size(); ++i)
-    parts.labels[i] = (*labelled)[i].label;
-
   std::map<uint32_t, uint32_t> part_of_supervoxel;
   lccp.getSupervoxelToSegmentMap(part_of_supervoxel);
+  std::map<uint32_t, uint32_t> numbered;  // LCCP's segment label -> ours
+  for (auto& [supervoxel, part] : part_of_supervoxel)
+    part = numbered.emplace(part, static_cast<uint32_t>(numbered.size() + 1)).first->second;
+  mergeSmallSegments(adjacency, kMaxSmallSegment, part_of_supervoxel);
+
+  pcl::PointCloud<pcl::PointXYZL>::Ptr labelled = supervoxel.getLabeledCloud();
+  ConvexParts parts;
+  parts.labels.assign(cluster->size(), 0);
+  for (size_t i = 0; i < parts.labels.size() && i < labelled->size(); ++i) {
+    const auto part = part_of_supervoxel.find((*labelled)[i].label);
+    if (part != part_of_supervoxel.end()) parts.labels[i] = part->second;
+  }
+
   pcl::LCCPSegmentation<Point>::SupervoxelAdjacencyList graph;
   lccp.getSVAdjacencyList(graph);
   for (auto [edge, end] = boost::edges(graph); edge != end; ++edge) {

@@ -2,15 +2,38 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <exception>
 #include <mutex>
 #include <thread>
 #include <vector>
 
 namespace tabletop_shapes {
+namespace {
+
+std::atomic<unsigned> chosen_threads{0};
+
+unsigned threadsFromEnvironment() {
+  const char* text = std::getenv("TABLETOP_SHAPES_THREADS");
+  if (!text) return 0;
+  char* end = nullptr;
+  const long threads = std::strtol(text, &end, 10);
+  return *end == '\0' && threads > 0 && threads <= 1024 ? static_cast<unsigned>(threads) : 0;
+}
+
+}  // namespace
+
+unsigned workerThreads() {
+  if (const unsigned chosen = chosen_threads.load()) return chosen;
+  static const unsigned from_environment = threadsFromEnvironment();
+  if (from_environment) return from_environment;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+void setWorkerThreads(unsigned threads) { chosen_threads = threads; }
 
 void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned threads) {
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  if (threads == 0) threads = workerThreads();
   const size_t workers = std::min<size_t>(threads, n);
   if (workers <= 1) {
     for (size_t i = 0; i < n; ++i) body(i);

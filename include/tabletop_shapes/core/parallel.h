@@ -6,10 +6,16 @@
 
 namespace tabletop_shapes {
 
-// Calls body(i) for every i in [0, n), on up to `threads` threads (0: one per core), the
+// Calls body(i) for every i in [0, n), on up to `threads` threads (0: workerThreads()), the
 // calling thread included; items are taken in order, so when the largest come first the load
 // evens out. Returns when all are done; an exception thrown by body is rethrown here (the
 // first one; the other items still run).
 void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned threads = 0);
+
+// The thread count parallelFor uses when given 0: the last setWorkerThreads(n > 0), else the
+// environment variable TABLETOP_SHAPES_THREADS (a positive number), else one per core. The
+// results must not depend on it; tests and tools set it to show that they do not.
+unsigned workerThreads();
+void setWorkerThreads(unsigned threads);  // 0: back to the environment / one per core
 
 }  // namespace tabletop_shapes
