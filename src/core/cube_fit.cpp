@@ -1,5 +1,7 @@
 #include "tabletop_shapes/core/cube_fit.h"
 
+#include "tabletop_shapes/core/plane_support.h"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -41,25 +43,6 @@ struct Face {
   int side = 0;   // +1: the face bounds the box at the positive end of its axis, -1: negative
 };
 
-// Inliers of a plane (§3.2) among `indices`: distance below the threshold AND point normal
-// within the angular threshold of the plane normal (either sign: RANSAC planes are unoriented).
-int collectSupport(const NormalCloud& cloud, const std::vector<int>& indices,
-                   const Eigen::Vector3f& normal, float d, const CubeParams& params,
-                   std::vector<int>* support, double* angle_sum) {
-  const float cos_threshold = std::cos(params.angle_threshold);
-  int count = 0;
-  for (int i : indices) {
-    const auto& p = cloud[i];
-    if (std::abs(normal.dot(p.getVector3fMap()) + d) >= params.distance_threshold) continue;
-    const float cosine = std::abs(normal.dot(p.getNormalVector3fMap()));
-    if (cosine <= cos_threshold) continue;
-    ++count;
-    if (support) support->push_back(i);
-    if (angle_sum) *angle_sum += std::acos(std::min(cosine, 1.0f));
-  }
-  return count;
-}
-
 // Total least squares plane of the support (eigenvector of the smallest eigenvalue of the
 // scatter): the OLS of eq. 4-8 on the orthogonal distance, free of its d = 0 special case.
 // Keeps the sign of `normal`. Returns false for fewer than 3 or collinear points.
@@ -88,15 +71,19 @@ bool fitPlane(const NormalCloud& cloud, const std::vector<int>& indices, Eigen::
 // Refits the plane on its support and re-collects the support, a few times (a RANSAC plane
 // from 3 noisy points is tilted; its refined support spans the whole face). The normal is then
 // oriented like the point normals of its support (outward for a visible face).
-bool refineFace(const NormalCloud& cloud, const std::vector<int>& all, const CubeParams& params,
-                Face& face) {
+bool refineFace(const NormalCloud& cloud, PlaneSupport& all, const CubeParams& params, Face& face) {
+  // Inliers (§3.2): distance below the threshold AND point normal within the angular threshold
+  // of the plane normal (either sign: RANSAC planes are unoriented).
+  const float cos_threshold = std::cos(params.angle_threshold);
   for (int iteration = 0; iteration < kRefineIterations; ++iteration) {
     face.support.clear();
-    collectSupport(cloud, all, face.normal, face.d, params, &face.support, nullptr);
+    all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
+                nullptr);
     if (!fitPlane(cloud, face.support, face.normal, face.d)) return false;
   }
   face.support.clear();
-  collectSupport(cloud, all, face.normal, face.d, params, &face.support, nullptr);
+  all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
+              nullptr);
   float agreement = 0.0f;
   for (int i : face.support) agreement += face.normal.dot(cloud[i].getNormalVector3fMap());
   if (agreement < 0.0f) {
@@ -271,6 +258,7 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
   }
   const int min_scoring_support =
       std::max(3, static_cast<int>(std::ceil(params.min_support_fraction * scoring.size())));
+  PlaneSupport scoring_points(object, scoring);
   auto drawAgreeing = [&](const Eigen::Vector3f& normal, int a, int b) {
     for (int attempt = 0; attempt < kMaxSampleTries; ++attempt) {
       const int j = pick(rng);
@@ -300,7 +288,8 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
     if (std::abs(normal.dot(n0)) <= cos_threshold) continue;
     const float d = -normal.dot(p0);
     double angle_sum = 0.0;
-    const int support = collectSupport(object, scoring, normal, d, params, nullptr, &angle_sum);
+    const int support = scoring_points.collect(normal, d, params.distance_threshold, cos_threshold,
+                                               nullptr, &angle_sum, min_scoring_support);
     if (support < min_scoring_support) continue;
     queue.push({normal, d, static_cast<float>(angle_sum / support), support});
   }
@@ -312,6 +301,7 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
 
   // ---- pop planes by mean angular distance; keep distinct, mutually perpendicular ones ----
   std::vector<Face> faces;
+  PlaneSupport all_points(object, all);
   const int max_planes = std::clamp(params.max_planes, 1, 3);
   while (!queue.empty() && static_cast<int>(faces.size()) < max_planes) {
     const Candidate candidate = queue.top();
@@ -320,7 +310,7 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
     Face face;
     face.normal = candidate.normal;
     face.d = candidate.d;
-    if (!refineFace(object, all, params, face)) continue;
+    if (!refineFace(object, all_points, params, face)) continue;
     if (static_cast<int>(face.support.size()) < min_support) continue;
     if (!consistentPlane(face.normal, faces, up, params)) continue;
     faces.push_back(std::move(face));

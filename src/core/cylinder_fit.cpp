@@ -64,8 +64,14 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
   double lambda = 1e-3;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     // Each entry one dot product of two columns: with 3-4 parameters and ~10^3 residuals,
-    // Eigen's blocked matrix product spent most of its instructions packing the operands.
-    const Eigen::MatrixXd jtj = jacobian.transpose().lazyProduct(jacobian);
+    // Eigen's blocked matrix product spent most of its instructions packing the operands. The
+    // lower triangle mirrors the upper one (the same products, summed in the same order).
+    Eigen::MatrixXd jtj(x.size(), x.size());
+    for (Eigen::Index row = 0; row < x.size(); ++row) {
+      for (Eigen::Index column = row; column < x.size(); ++column) {
+        jtj(row, column) = jtj(column, row) = jacobian.col(row).dot(jacobian.col(column));
+      }
+    }
     const Eigen::VectorXd gradient = jacobian.transpose().lazyProduct(residuals);
     bool improved = false;
     while (lambda < 1e12) {
@@ -102,7 +108,7 @@ struct Weighted {
                   Eigen::MatrixXd* jacobian) const {
     model(x, residuals, jacobian);
     residuals.array() *= weights.array();
-    if (jacobian) *jacobian = weights.asDiagonal() * *jacobian;
+    if (jacobian) jacobian->array().colwise() *= weights.array();  // in place
   }
 };
 

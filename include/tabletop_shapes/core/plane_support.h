@@ -1,0 +1,52 @@
+// Plane inlier tests for the box fit's RANSAC (§3.2): hundreds of planes are tested against the
+// same points, so the points are held one array per coordinate, in blocks of four that GCC's
+// vector extension tests at once. Each lane does the same float operations as Eigen's dot of
+// two 3-vectors (x0 y0 + (x1 y1 + x2 y2)), in the same order: the same results, to the bit, as
+// the plain loop.
+#pragma once
+
+#include "tabletop_shapes/core/normals.h"
+
+#include <vector>
+
+namespace tabletop_shapes {
+
+using Float4 = float __attribute__((vector_size(16)));
+using Int4 = int __attribute__((vector_size(16)));
+
+// Three coordinates of points in blocks of four; the padding of the last block lies far from
+// every plane through the data, with a zero vector where the vectors are normals.
+struct VectorBlocks {
+  std::vector<Float4> x, y, z;
+  void resize(size_t points, float padding);
+  void set(size_t k, float px, float py, float pz) {
+    x[k / 4][k % 4] = px;
+    y[k / 4][k % 4] = py;
+    z[k / 4][k % 4] = pz;
+  }
+};
+
+// The box fit's plane inliers among the points `indices` of a cloud with normals.
+class PlaneSupport {
+ public:
+  PlaneSupport(const NormalCloud& cloud, const std::vector<int>& indices);
+
+  // Number of inliers of the plane normal . p + d = 0: distance below `distance_threshold` AND
+  // point normal within acos(`cos_threshold`) of the plane normal (either sign). `support`, when
+  // given, receives their indices into the cloud (in the order given); `angle_sum`, when given
+  // and at least `min_count` are found, gets the angles between their normals and the plane's
+  // added, in the same order. The same numbers, to the bit, as the plain loop over the points
+  // (normal.dot(p) + d, |normal.dot(point normal)|, acos).
+  int collect(const Eigen::Vector3f& normal, float d, float distance_threshold, float cos_threshold,
+              std::vector<int>* support, double* angle_sum, int min_count = 0);
+
+ private:
+  static constexpr float kFarAway = 1e30f;
+  std::vector<int> indices_;
+  VectorBlocks points_, normals_;
+  // Per block, of the last plane: which points are inliers (bit i: lane i) and their |cosine|.
+  std::vector<unsigned> inlier_lanes_;
+  std::vector<Float4> cosine_;
+};
+
+}  // namespace tabletop_shapes
