@@ -4,11 +4,13 @@
 //                      [--osd DIR] [--osd-up auto|labelled] [--out DIR] [--no-plots] [--verbose]
 //                      [--save-failures DIR]
 //                      [--everyday-scenes N] [--everyday N] [--sensor kinect|realsense]
-//                      [--clutter-scenes N] [--clutter N]
+//                      [--clutter-scenes N] [--clutter N] [--clutter-kind KIND]
+//                      [--clutter-seeds S1,S2,...]
 //                      [--set stage.name=value ...]   (parameters as in estimate_shapes)
 // plus everyday objects (issue 12) on a Kinect v1 and a RealSense D435; --everyday N runs only
 // that part, with N scenes per sensor; and rendered clutter (issue 15): --clutter N runs only
-// that part, with N scenes per kind.
+// that part, with N scenes per kind; --clutter-kind only one kind (covered: also with the camera
+// height known), --clutter-seeds those scenes (the seeds --verbose prints) instead of N drawn.
 #include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/pipeline.h"
 #include "tabletop_shapes/sim/clutter_scenes.h"
@@ -27,6 +29,7 @@
 #include <iterator>
 #include <map>
 #include <set>
+#include <sstream>
 #include <tuple>
 
 using namespace tabletop_shapes;
@@ -50,10 +53,12 @@ struct Options {
   // Scenes with a missed object or a false positive: <dir>/scene_<seed>.pcd + .json, to be
   // looked at with estimate_shapes --verbose.
   std::string failures_dir;
-  int everyday_scenes = 40;    // per sensor, after the other parts; 0: none
-  bool everyday_only = false;  // --everyday N: only the everyday part
-  int clutter_scenes = 8;      // per clutter kind, after the rendered tables; 0: none
-  bool clutter_only = false;   // --clutter N: only the clutter part
+  int everyday_scenes = 40;             // per sensor, after the other parts; 0: none
+  bool everyday_only = false;           // --everyday N: only the everyday part
+  int clutter_scenes = 8;               // per clutter kind, after the rendered tables; 0: none
+  bool clutter_only = false;            // --clutter N: only the clutter part
+  int clutter_kind = -1;                // --clutter-kind: only this ClutterKind; -1: all
+  std::vector<uint32_t> clutter_seeds;  // --clutter-seeds: these scenes instead of drawn ones
   std::vector<SensorModel> sensors = {SensorModel::KinectV1, SensorModel::RealSenseD435};
   PipelineParams params;  // defaults, changed by --set stage.name=value
 };
@@ -670,14 +675,24 @@ void printClutterRow(const std::string& kind, int scenes, const Tally& tally) {
 void runClutter(const Options& options) {
   // The kinds, then the covered tables again with table.camera_height known.
   std::vector<Tally> tallies(kClutterKinds + 1);
-  const int total = options.clutter_scenes * (kClutterKinds + 1);
-  int done = 0;
-  for (int k = 0; k <= kClutterKinds; ++k) {
-    const ClutterKind kind = k < kClutterKinds ? static_cast<ClutterKind>(k) : ClutterKind::Covered;
+  std::vector<uint32_t> scene_seeds = options.clutter_seeds;
+  if (scene_seeds.empty()) {
     std::mt19937 seeds(options.seed);
-    for (int i = 0; i < options.clutter_scenes; ++i) {
-      runScene(clutterScene(kind, static_cast<uint32_t>(seeds())), options, tallies[k], 0.06,
-               k == kClutterKinds);
+    for (int i = 0; i < options.clutter_scenes; ++i) scene_seeds.push_back(seeds());
+  }
+  const int scenes = static_cast<int>(scene_seeds.size());
+  auto kindOf = [](int k) {
+    return k < kClutterKinds ? static_cast<ClutterKind>(k) : ClutterKind::Covered;
+  };
+  auto wanted = [&](int k) {
+    return options.clutter_kind < 0 || static_cast<int>(kindOf(k)) == options.clutter_kind;
+  };
+  int total = 0, done = 0;
+  for (int k = 0; k <= kClutterKinds; ++k) total += wanted(k) ? scenes : 0;
+  for (int k = 0; k <= kClutterKinds; ++k) {
+    if (!wanted(k)) continue;
+    for (const uint32_t seed : scene_seeds) {
+      runScene(clutterScene(kindOf(k), seed), options, tallies[k], 0.06, k == kClutterKinds);
       progress(++done, total);
     }
   }
@@ -691,22 +706,23 @@ void runClutter(const Options& options) {
       " expected (a lying can: lying cylinder or box);\n  dim / vol: median eq. 17 error of right"
       " solids at least half visible (n). Goal: found >= %.0f %%, right >= %.0f %%, dim <= 2 %%,"
       " vol <= 5 %%\n\n",
-      options.clutter_scenes, options.seed, kMinVisiblePixels, kTargetClutterFound,
-      kTargetClutterTypeRight);
+      scenes, options.seed, kMinVisiblePixels, kTargetClutterFound, kTargetClutterTypeRight);
   std::printf("  %-28s %6s %7s %5s %6s %6s %5s %5s %6s %9s %9s %9s  %s\n", "kind", "scenes",
               "counted", "found", "", "pieces", "junk", "right", "", "n dim/vol", "med dim",
               "med vol", "goal");
   Tally all;
   for (int k = 0; k < kClutterKinds; ++k) {
-    printClutterRow(clutterKindName(static_cast<ClutterKind>(k)), options.clutter_scenes,
-                    tallies[k]);
+    if (!wanted(k)) continue;
+    printClutterRow(clutterKindName(static_cast<ClutterKind>(k)), scenes, tallies[k]);
     all.samples.insert(all.samples.end(), tallies[k].samples.begin(), tallies[k].samples.end());
     all.false_positives += tallies[k].false_positives;
     all.pieces += tallies[k].pieces;
     all.scenes_without_table += tallies[k].scenes_without_table;
   }
-  printClutterRow("all", options.clutter_scenes * kClutterKinds, all);
-  printClutterRow("covered, camera height known", options.clutter_scenes, tallies[kClutterKinds]);
+  if (options.clutter_kind < 0) printClutterRow("all", scenes * kClutterKinds, all);
+  if (wanted(kClutterKinds)) {
+    printClutterRow("covered, camera height known", scenes, tallies[kClutterKinds]);
+  }
   std::printf("  (scenes without table %d; with the camera height %d)\n", all.scenes_without_table,
               tallies[kClutterKinds].scenes_without_table);
 }
@@ -770,6 +786,23 @@ Options parse(int argc, char** argv) {
     else if (arg == "--clutter") {
       options.clutter_scenes = std::stoi(value());
       options.clutter_only = true;
+    } else if (arg == "--clutter-kind") {
+      const std::string name = value();
+      for (int k = 0; k < kClutterKinds; ++k) {
+        if (name == clutterKindName(static_cast<ClutterKind>(k))) options.clutter_kind = k;
+      }
+      if (options.clutter_kind < 0) {
+        std::fprintf(stderr,
+                     "benchmark_accuracy: --clutter-kind %s: touching, stacked, \"half hidden\" "
+                     "or covered\n",
+                     name.c_str());
+        std::exit(2);
+      }
+    } else if (arg == "--clutter-seeds") {
+      std::stringstream list(value());
+      for (std::string seed; std::getline(list, seed, ',');) {
+        options.clutter_seeds.push_back(static_cast<uint32_t>(std::stoul(seed)));
+      }
     } else if (arg == "--everyday-scenes")
       options.everyday_scenes = std::stoi(value());
     else if (arg == "--everyday") {
@@ -791,6 +824,7 @@ Options parse(int argc, char** argv) {
           " [--up auto] [--osd DIR] [--osd-up auto|labelled] [--out DIR] [--no-plots] [--verbose]"
           " [--save-failures DIR] [--everyday-scenes N] [--everyday N]"
           " [--sensor kinect|realsense] [--clutter-scenes N] [--clutter N]"
+          " [--clutter-kind touching|stacked|\"half hidden\"|covered] [--clutter-seeds S1,S2,...]"
           " [--set stage.name=value ...]\n");
       std::exit(2);
     }
