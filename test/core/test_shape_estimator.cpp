@@ -312,8 +312,7 @@ TEST(ShapeEstimator, LyingCanIsNotNarrowedWithEdgeSmear) {
   view.max_tan_y = 0.6f;
   view.pixel_tan = 1.0f / 385.0f;
   view.point_spacing = synthetic::voxelGridSampler().spacing;
-  expectLyingCylinderAtYaws(0.033f, 0.101f, {0.0f, 1.57f}, "lying can, edge smear", params,
-                            &view);
+  expectLyingCylinderAtYaws(0.033f, 0.101f, {0.0f, 1.57f}, "lying can, edge smear", params, &view);
   // A tin on its rim seen side on: 8 cm across the line of sight, half its 19 cm diameter.
   expectLyingCylinderAtYaws(0.095f, 0.08f, {0.0f}, "tin on its rim, edge smear", params, &view);
 }
@@ -405,6 +404,48 @@ TEST(ShapeEstimator, WholeObjectsInViewAreNotTruncated) {
   ASSERT_TRUE(fit.ok) << fit.reason;
   EXPECT_FALSE(fit.truncated);
   EXPECT_FALSE(fit.lower_bound[0] || fit.lower_bound[1] || fit.lower_bound[2]);
+}
+
+TEST(ShapeEstimator, NearestObjectIsCutOnlyAtTheCamerasNearLimit) {
+  // A soup can (d 66, h 101 mm) 0.57 m from the camera, the nearest object of its frame: the
+  // frame's nearest depth is its own. A RealSense (near limit 0.28 m) saw all of it; a camera
+  // whose near limit is that depth cut it there, towards the camera; a camera of unknown near
+  // limit is taken as cut by it within 0.6 m.
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  sampler.camera = {0.0f, -0.45f, 0.35f};
+  const CameraView view =
+      inOpticalFrame(synthetic::roundObject(0.033f, 0.033f, 0.101f, {0.0f, 0.0f}, sampler),
+                     sampler.camera, Eigen::Vector3f(0, 0, 0.05f));
+  float nearest = std::numeric_limits<float>::max();
+  for (const auto& p : view.cloud->points) nearest = std::min(nearest, p.z);
+  ASSERT_GT(nearest, 0.5f);
+  ASSERT_LT(nearest, 0.6f);
+  ViewBounds bounds;
+  bounds.known = true;
+  bounds.pixel_tan = 1.0f / 385.0f;
+  bounds.point_spacing = sampler.spacing;
+  bounds.min_tan_x = -0.8f;
+  bounds.max_tan_x = 0.8f;
+  bounds.min_tan_y = -0.6f;
+  bounds.max_tan_y = 0.6f;
+  bounds.min_depth = nearest;
+  struct Case {
+    float near_limit;
+    bool cut;
+  };
+  for (const Case& c : {Case{0.28f, false}, Case{nearest - 0.01f, true}, Case{0.0f, true}}) {
+    ShapeEstimatorParams params;
+    params.near_limit = c.near_limit;
+    const ShapeFit fit = ShapeEstimator(params).estimate(view.cloud, view.table, &bounds);
+    const std::string what = "near limit " + std::to_string(c.near_limit);
+    printFit(what.c_str(), fit);
+    ASSERT_TRUE(fit.ok) << what << ": " << fit.reason;
+    EXPECT_EQ(fit.truncated, c.cut) << what;
+    if (c.cut) continue;
+    EXPECT_EQ(fit.type, ShapeType::Cylinder) << what;
+    EXPECT_NEAR(fit.radius, 0.033f, 0.003f) << what;
+    EXPECT_NEAR(fit.height, 0.101f, 0.005f) << what;
+  }
 }
 
 TEST(ViewBounds, FromAnOrganisedCloud) {
