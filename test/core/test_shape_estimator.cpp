@@ -408,12 +408,12 @@ TEST(ShapeEstimator, WholeObjectsInViewAreNotTruncated) {
 }
 
 TEST(ShapeEstimator, NearestObjectIsCutOnlyAtTheCamerasNearLimit) {
-  // A soup can (d 66, h 101 mm) 0.57 m from the camera, the nearest object of its frame: the
+  // A soup can (d 66, h 101 mm) 0.55 m from the camera, the nearest object of its frame: the
   // frame's nearest depth is its own. A RealSense (near limit 0.28 m) saw all of it; a camera
   // whose near limit is that depth cut it there, towards the camera; a camera of unknown near
   // limit is taken as cut by it within 0.6 m.
   synthetic::Sampler sampler = synthetic::voxelGridSampler();
-  sampler.camera = {0.0f, -0.45f, 0.35f};
+  sampler.camera = {0.0f, -0.5f, 0.4f};
   const CameraView view =
       inOpticalFrame(synthetic::roundObject(0.033f, 0.033f, 0.101f, {0.0f, 0.0f}, sampler),
                      sampler.camera, Eigen::Vector3f(0, 0, 0.05f));
