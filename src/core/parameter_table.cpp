@@ -118,6 +118,9 @@ void forEachParameter(PipelineParams& p, const Visitor& visit) {
   real("shapes", "edge_bleed_px", shapes.edge_bleed_px, 0.0, 20.0,
        "the camera smears a near surface's depth this many pixels beyond its silhouette "
        "(RealSense D4xx: 3, Kinect: 0); that band of a cluster's sides is left out of the fit");
+  real("shapes", "near_limit", shapes.near_limit, 0.0, 2.0,
+       "the camera's nearest measured depth [m] (Kinect: 0.45, RealSense D435: 0.28; 0: "
+       "unknown, taken within 0.6 m); an object reaching it is cut (truncated)");
 }
 
 bool setParameter(PipelineParams& params, const std::string& stage, const std::string& name,

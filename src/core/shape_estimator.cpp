@@ -113,21 +113,38 @@ const float kSilhouetteFraction = std::sin(70.0f * static_cast<float>(kPi) / 180
 // Where the camera's view cuts the cluster: the directions (optical frame) in which it
 // continues out of view. Image borders: the points reach within two pixels and half the point
 // spacing (where voxel centroids end) of the valid pixels' bounds. Near limit: they reach the
-// frame's nearest valid depth (plus the point spacing); the direction is then towards the
-// camera.
-// Depth cameras' near limits lie within 0.6 m (Kinect v1 / Xtion ~0.45-0.5 m, RealSense D4xx
-// less); a frame whose nearest point is farther is not cut by it. Without this bound the
-// nearest object of every real OSD frame (walls and floor cropped) was flagged as cut.
+// frame's nearest valid depth (plus the point spacing), and that depth is the camera's near
+// limit (nearCutDepth); the direction is then towards the camera.
+// Without a known near limit: depth cameras' near limits lie within 0.6 m (Kinect v1 / Xtion
+// ~0.45-0.5 m, RealSense D4xx less); a frame whose nearest point is farther is not cut by it.
+// Without this bound the nearest object of every real OSD frame (walls and floor cropped) was
+// flagged as cut.
 constexpr float kFarthestNearLimit = 0.6f;
+// With a known near limit, a surface cut by it has its nearest points within this of it: its
+// voxel centroids lie up to half a voxel beyond, plus depth noise and quantisation (a Kinect's
+// depth steps are ~1.5 mm at 0.5 m).
+constexpr float kNearLimitMargin = 0.02f;
+
+// The depth below which a frame's points are cut by the camera's near limit: its nearest valid
+// depth, when that can be the near limit (`near_limit`, ShapeEstimatorParams; 0: unknown); else
+// 0, no near cut. A frame whose nearest object stands beyond the near limit is not cut: a
+// RealSense (near limit 0.28 m) marker at 0.57 m, the nearest object of its frame, was taken as
+// cut under the 0.6 m bound, and its thin-object rule was turned off (r 18 mm for 9).
+float nearCutDepth(const ViewBounds& view, float near_limit) {
+  if (!(view.min_depth > 0.0f)) return 0.0f;
+  const float farthest = near_limit > 0.0f ? near_limit + kNearLimitMargin : kFarthestNearLimit;
+  return view.min_depth < farthest ? view.min_depth + view.point_spacing : 0.0f;
+}
 
 struct Cuts {
   std::vector<Eigen::Vector3f> directions;
   bool near = false;
 };
 
-Cuts findCuts(const Cloud& cluster, const ViewBounds* view) {
+Cuts findCuts(const Cloud& cluster, const ViewBounds* view, float near_limit) {
   Cuts cuts;
   if (!view || !view->known) return cuts;
+  const float near_cut = nearCutDepth(*view, near_limit);
   bool border[4] = {false, false, false, false};  // left, right, top, bottom of the image
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
   for (const auto& p : cluster.points) {
@@ -137,8 +154,7 @@ Cuts findCuts(const Cloud& cluster, const ViewBounds* view) {
     border[1] |= p.x / p.z > view->max_tan_x - margin;
     border[2] |= p.y / p.z < view->min_tan_y + margin;
     border[3] |= p.y / p.z > view->max_tan_y - margin;
-    cuts.near |= view->min_depth > 0.0f && view->min_depth < kFarthestNearLimit &&
-                 p.z < view->min_depth + view->point_spacing;
+    cuts.near |= p.z < near_cut;
     centroid += p.getVector3fMap();
   }
   const Eigen::Vector3f borders[4] = {-Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(),
@@ -633,7 +649,7 @@ ShapeFit ShapeEstimator::estimate(const CloudConstPtr& cluster, const Plane& tab
     return cluster ? fallback(*cluster, table, "too few points to fit a model")
                    : unknown(Cloud(), "no cluster");
   }
-  const Cuts cuts = findCuts(*cluster, view);
+  const Cuts cuts = findCuts(*cluster, view, params_.near_limit);
   ShapeFit fit =
       estimateSolid(params_, trimEdgeBleed(cluster, table, params_.edge_bleed_px, view, cuts),
                     *cluster, edgeSmear(*cluster, params_.edge_bleed_px, view), table, cuts);

@@ -228,6 +228,7 @@ void runScene(const SceneSpec& spec, const Options& options, Tally& tally,
   // The camera's edge smear, as a robot's configuration for its camera would give it.
   if (spec.noise.enabled && spec.noise.edge_bleeding && params.shapes.edge_bleed_px == 0.0f)
     params.shapes.edge_bleed_px = static_cast<float>(spec.noise.edge_bleed_px);
+  if (params.shapes.near_limit == 0.0f) params.shapes.near_limit = spec.noise.min_range;
   if (camera_height_known) params.table.camera_height = scene.table_plane.d;
   Pipeline pipeline(params);
   const SceneResult result = pipeline.process(*scene.cloud);

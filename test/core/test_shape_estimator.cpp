@@ -296,6 +296,20 @@ TEST(ShapeEstimator, TinOnItsRimIsALyingCylinder) {
   expectLyingCylinderAtYaws(0.095f, 0.08f, {1.2f, 1.57f, 1.9f}, "tin on its rim");
 }
 
+// The view of a camera of focal length `focal_px` whose image spans +-tan_x, +-tan_y (tangents
+// of its rays), clusters of voxel centroids `spacing` apart; no near limit known to be reached.
+ViewBounds wholeImage(float focal_px, float tan_x, float tan_y, float spacing) {
+  ViewBounds view;
+  view.known = true;
+  view.min_tan_x = -tan_x;
+  view.max_tan_x = tan_x;
+  view.min_tan_y = -tan_y;
+  view.max_tan_y = tan_y;
+  view.pixel_tan = 1.0f / focal_px;
+  view.point_spacing = spacing;
+  return view;
+}
+
 TEST(ShapeEstimator, LyingCanIsNotNarrowedWithEdgeSmear) {
   // With a RealSense's edge smear (edge_bleed_px), an upright cylinder wider than its points
   // is narrowed to their median width over height slices (narrowToPoints). A lying can's
@@ -304,16 +318,9 @@ TEST(ShapeEstimator, LyingCanIsNotNarrowedWithEdgeSmear) {
   // axis along the line of sight or across it, it keeps its radius.
   ShapeEstimatorParams params;
   params.edge_bleed_px = 3.0f;
-  ViewBounds view;  // a D435 (fx 385 px) seeing the whole can
-  view.known = true;
-  view.min_tan_x = -0.8f;
-  view.max_tan_x = 0.8f;
-  view.min_tan_y = -0.6f;
-  view.max_tan_y = 0.6f;
-  view.pixel_tan = 1.0f / 385.0f;
-  view.point_spacing = synthetic::voxelGridSampler().spacing;
-  expectLyingCylinderAtYaws(0.033f, 0.101f, {0.0f, 1.57f}, "lying can, edge smear", params,
-                            &view);
+  // A D435 (fx 385 px) seeing the whole can.
+  const ViewBounds view = wholeImage(385.0f, 0.8f, 0.6f, synthetic::voxelGridSampler().spacing);
+  expectLyingCylinderAtYaws(0.033f, 0.101f, {0.0f, 1.57f}, "lying can, edge smear", params, &view);
   // A tin on its rim seen side on: 8 cm across the line of sight, half its 19 cm diameter.
   expectLyingCylinderAtYaws(0.095f, 0.08f, {0.0f}, "tin on its rim, edge smear", params, &view);
 }
@@ -393,18 +400,46 @@ TEST(ShapeEstimator, WholeObjectsInViewAreNotTruncated) {
   synthetic::Sampler sampler = synthetic::voxelGridSampler();
   const CameraView view = inOpticalFrame(synthetic::box(kMilkTea, {0.0f, 0.0f}, 0.3f, sampler),
                                          sampler.camera, Eigen::Vector3f(0, 0, kMilkTea.z() / 2));
-  ViewBounds bounds;
-  bounds.known = true;
-  bounds.pixel_tan = 1.0f / 575.8f;
-  bounds.point_spacing = sampler.spacing;
-  bounds.min_tan_x = -0.55f;
-  bounds.max_tan_x = 0.55f;
-  bounds.min_tan_y = -0.42f;
-  bounds.max_tan_y = 0.42f;
+  const ViewBounds bounds = wholeImage(575.8f, 0.55f, 0.42f, sampler.spacing);
   const ShapeFit fit = ShapeEstimator().estimate(view.cloud, view.table, &bounds);
   ASSERT_TRUE(fit.ok) << fit.reason;
   EXPECT_FALSE(fit.truncated);
   EXPECT_FALSE(fit.lower_bound[0] || fit.lower_bound[1] || fit.lower_bound[2]);
+}
+
+TEST(ShapeEstimator, NearestObjectIsCutOnlyAtTheCamerasNearLimit) {
+  // A soup can (d 66, h 101 mm) 0.55 m from the camera, the nearest object of its frame: the
+  // frame's nearest depth is its own. A RealSense (near limit 0.28 m) saw all of it; a camera
+  // whose near limit is that depth cut it there, towards the camera; a camera of unknown near
+  // limit is taken as cut by it within 0.6 m.
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  sampler.camera = {0.0f, -0.5f, 0.4f};
+  const CameraView view =
+      inOpticalFrame(synthetic::roundObject(0.033f, 0.033f, 0.101f, {0.0f, 0.0f}, sampler),
+                     sampler.camera, Eigen::Vector3f(0, 0, 0.05f));
+  float nearest = std::numeric_limits<float>::max();
+  for (const auto& p : view.cloud->points) nearest = std::min(nearest, p.z);
+  ASSERT_GT(nearest, 0.5f);
+  ASSERT_LT(nearest, 0.6f);
+  ViewBounds bounds = wholeImage(385.0f, 0.8f, 0.6f, sampler.spacing);  // a D435's
+  bounds.min_depth = nearest;
+  struct Case {
+    float near_limit;
+    bool cut;
+  };
+  for (const Case& c : {Case{0.28f, false}, Case{nearest - 0.01f, true}, Case{0.0f, true}}) {
+    ShapeEstimatorParams params;
+    params.near_limit = c.near_limit;
+    const ShapeFit fit = ShapeEstimator(params).estimate(view.cloud, view.table, &bounds);
+    const std::string what = "near limit " + std::to_string(c.near_limit);
+    printFit(what.c_str(), fit);
+    ASSERT_TRUE(fit.ok) << what << ": " << fit.reason;
+    EXPECT_EQ(fit.truncated, c.cut) << what;
+    if (c.cut) continue;
+    EXPECT_EQ(fit.type, ShapeType::Cylinder) << what;
+    EXPECT_NEAR(fit.radius, 0.033f, 0.003f) << what;
+    EXPECT_NEAR(fit.height, 0.101f, 0.005f) << what;
+  }
 }
 
 TEST(ViewBounds, FromAnOrganisedCloud) {

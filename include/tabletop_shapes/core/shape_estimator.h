@@ -24,6 +24,11 @@ struct ShapeEstimatorParams {
   // thin upright cylinder (under 14 px across) takes half its median width over height slices,
   // less the smear, as its radius (its circle is depth noise).
   float edge_bleed_px = 0.0f;
+  // The camera's near limit, the nearest depth it measures [m] (Kinect v1: 0.45, RealSense
+  // D435: 0.28); 0: unknown. An object holding a frame's nearest point is taken as cut by it
+  // (truncated, towards the camera) only when that point lies at this limit; unknown, when it
+  // lies within 0.6 m.
+  float near_limit = 0.0f;
 };
 
 class ShapeEstimator {
