@@ -646,24 +646,35 @@ int knownHeightRank(const Cloud& cloud, const Candidate& candidate, const TableP
   return 2 * levelWith(candidate, up) + !hasPointsBelow(cloud, candidate, params);
 }
 
+// The knownHeightRank of each candidate within the tolerance of the known camera height, -1 for
+// the others, in `ranks` beside `candidates`: only the candidates added since the last call are
+// ranked (hasPointsBelow scans the whole cloud, and the table stage asks up to 3 times).
+void rankAtKnownHeight(const Cloud& cloud, const std::vector<Candidate>& candidates,
+                       const TableParams& params, const Eigen::Vector3f& up,
+                       std::vector<int>& ranks) {
+  for (size_t i = ranks.size(); i < candidates.size(); ++i) {
+    const bool at_height = !(std::abs(cameraHeightAbove(cloud, candidates[i]) -
+                                      params.camera_height) > params.camera_height_tolerance);
+    ranks.push_back(at_height ? knownHeightRank(cloud, candidates[i], params, up) : -1);
+  }
+}
+
 // With a known camera height: among the candidates within the tolerance of it, the one of the
-// highest knownHeightRank, of those the one with the most inliers; -1 when none is. `rank`, when
-// given, receives the chosen one's rank.
+// highest knownHeightRank, of those the one with the most inliers; -1 when none is. `ranks` keeps
+// the ranks beside `candidates` between calls (rankAtKnownHeight). `rank`, when given, receives
+// the chosen one's rank.
 int supportAtKnownHeight(const Cloud& cloud, const std::vector<Candidate>& candidates,
                          const TableParams& params, const Eigen::Vector3f& up,
-                         int* rank = nullptr) {
+                         std::vector<int>& ranks, int* rank = nullptr) {
+  rankAtKnownHeight(cloud, candidates, params, up, ranks);
   int chosen = -1, chosen_rank = -1;
   for (size_t i = 0; i < candidates.size(); ++i) {
-    if (std::abs(cameraHeightAbove(cloud, candidates[i]) - params.camera_height) >
-        params.camera_height_tolerance) {
-      continue;
-    }
-    const int candidate_rank = knownHeightRank(cloud, candidates[i], params, up);
-    if (candidate_rank > chosen_rank ||
-        (candidate_rank == chosen_rank &&
+    if (ranks[i] < 0) continue;
+    if (ranks[i] > chosen_rank ||
+        (ranks[i] == chosen_rank &&
          candidates[i].inliers.size() > candidates[chosen].inliers.size())) {
       chosen = static_cast<int>(i);
-      chosen_rank = candidate_rank;
+      chosen_rank = ranks[i];
     }
   }
   if (rank) *rank = chosen_rank;
@@ -761,21 +772,23 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   std::vector<std::string> refused;
   const bool height_known = params_.camera_height > 0.0f;
   std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
+  std::vector<int> known_height_ranks;  // beside `candidates` when the camera height is known
   if (height_known) {
     // No level surface hiding nothing at the height (knownHeightRank 3): the level planes of
     // the height band are searched alone (box tops can take every search, tilted planes through
     // them and the gaps too), then, when none is at the height, the band's planes within
     // up_tolerance_deg.
     int rank = -1;
-    const int at_height = supportAtKnownHeight(*cloud, candidates, params_, constraint.axis, &rank);
+    const int at_height = supportAtKnownHeight(*cloud, candidates, params_, constraint.axis,
+                                               known_height_ranks, &rank);
     if (rank < 3) {
       const std::vector<int> band = pointsAtKnownHeight(*cloud, constraint.axis, params_);
       for (const NormalConstraint& search :
            {NormalConstraint{constraint.axis, kParallelCosine, false}, constraint}) {
         std::vector<Candidate> found = findPlanes(*cloud, params_, search, &refused, &band);
         for (Candidate& candidate : found) candidates.push_back(std::move(candidate));
-        if (at_height >= 0 ||
-            supportAtKnownHeight(*cloud, candidates, params_, constraint.axis) >= 0) {
+        if (at_height >= 0 || supportAtKnownHeight(*cloud, candidates, params_, constraint.axis,
+                                                   known_height_ranks) >= 0) {
           break;
         }
       }
@@ -794,7 +807,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   std::vector<int> objects;
   int chosen = -1;
   if (height_known) {
-    chosen = supportAtKnownHeight(*cloud, candidates, params_, constraint.axis);
+    chosen = supportAtKnownHeight(*cloud, candidates, params_, constraint.axis, known_height_ranks);
     if (chosen < 0) {
       std::string heights;
       for (const Candidate& candidate : candidates) {
