@@ -7,7 +7,8 @@ namespace tabletop_shapes {
 
 std::vector<ShapeFit> fitObjects(const ShapeEstimator& estimator, const Plane& table,
                                  const ViewBounds& view, std::vector<CloudPtr>& clusters) {
-  std::vector<Plane> supports = supportPlanes(clusters, table);
+  // The clusters are in the camera's optical frame (as `view` is): the camera is the origin.
+  std::vector<Plane> supports = supportPlanes(clusters, table, Eigen::Vector3f::Zero());
   std::vector<ShapeFit> fits = estimator.estimateAll(clusters, supports, &view);
   rejoinNecks(estimator, table, view, clusters, supports, fits);
   return fits;

@@ -28,7 +28,7 @@ Fitted fitInCameraFrame(std::vector<CloudPtr> clusters, const synthetic::Sampler
   table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
   Fitted out;
   out.clusters = clusters;
-  out.supports = supportPlanes(out.clusters, table);
+  out.supports = supportPlanes(out.clusters, table, Eigen::Vector3f::Zero());
   out.fits = estimator.estimateAll(out.clusters, out.supports);
   return out;
 }

@@ -8,9 +8,12 @@
 namespace tabletop_shapes {
 
 // One plane per cluster, same order, parallel to `table`. A cluster rests on others when its
-// lowest points lie more than kMinLift above the table and most of them stand over the
+// lowest points lie more than kMinLift above the table and some of them stand over the
 // footprint of another cluster whose top reaches up to them; a cluster whose lower part is only
-// hidden (behind an object in front) has nothing under it and keeps the table.
-std::vector<Plane> supportPlanes(const std::vector<CloudPtr>& clusters, const Plane& table);
+// hidden (behind an object in front) has nothing under it and keeps the table: its bottom edge
+// lies behind that object's footprint as seen from `eye` (the camera, in the clusters' frame),
+// and its centre is not over it.
+std::vector<Plane> supportPlanes(const std::vector<CloudPtr>& clusters, const Plane& table,
+                                 const Eigen::Vector3f& eye);
 
 }  // namespace tabletop_shapes
