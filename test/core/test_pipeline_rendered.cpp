@@ -316,4 +316,30 @@ TEST(PipelineOnRenderedScenes, FlatBottleIsNotHalvedByItsCap) {
   }
 }
 
+// Issue 12's "never more than 20 % larger", on a Kinect everyday scene of the benchmark (seed 7,
+// scene 8): a box cut by the image border stood behind a flattened bottle, as high as its cap,
+// and the lines of sight to it crossed the cap's height over the bottle's shoulder: it was
+// joined to the bottle as the inside of an open object, and the two came out one cylinder
+// r 49 mm (102 % over the bottle's 50 mm). The opening is what a rim surrounds, not a cap.
+TEST(PipelineOnRenderedScenes, BoxBehindAFlatBottleIsNotItsInside) {
+  std::mt19937 seeds(7);  // benchmark_accuracy's everyday scene seeds
+  for (int i = 0; i < 7; ++i) seeds();
+  const RenderedScene scene =
+      renderScene(everydayScene(static_cast<uint32_t>(seeds()), SensorModel::KinectV1));
+  PipelineParams params;
+  params.table.up = scene.up;
+  const SceneResult result = Pipeline(params).process(*scene.cloud);
+  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
+  int checked = 0;
+  for (const Match& m : matches) {
+    const GroundTruthObject& truth = scene.objects[m.truth];
+    if (truth.name != "flat bottle" && truth.name != "border box") continue;
+    ++checked;
+    const ShapeFit& fit = result.objects[m.detection];
+    EXPECT_EQ(fit.type, ShapeType::Cube) << truth.name << ": " << shapeTypeName(fit.type);
+    EXPECT_LT(oversizePercent(truth, fit, scene.up), 20.0) << truth.name;
+  }
+  EXPECT_EQ(checked, 2) << "the bottle and the box, each found";
+}
+
 }  // namespace
