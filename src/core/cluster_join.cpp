@@ -58,7 +58,7 @@ constexpr float kTouching = 0.01f;
 
 struct Footprint {
   float top = 0.0f;                   // highest point above the table [m]
-  std::vector<Eigen::Vector2f> hull;  // convex hull on the table, in (u, v)
+  std::vector<Eigen::Vector2f> hull;  // convex hull of the rim on the table, in (u, v)
 };
 
 // Whether clusters a and b were parted under their own top faces (cluster_split.h).
@@ -107,17 +107,25 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   if (clusters.size() < 2) return clusters;
   const Eigen::Vector3f u = table.normal.unitOrthogonal(), v = table.normal.cross(u);
   const float eye_height = table.signedDistance(viewpoint);
+  // The opening is what the rim surrounds: the footprint of the points within kBelowRim of the
+  // top. A closed object's topmost points are solid (a bottle's cap over its shoulder): the
+  // camera sees nothing through them, while lines of sight to an object behind it crossed the
+  // cap's height over the shoulder, within the whole footprint (issue 12: a box cut by the image
+  // border behind a flattened bottle was joined to it as its inside).
   auto footprintOf = [&](const std::vector<size_t>& members) {
-    std::vector<Eigen::Vector2f> projected;
     float top = -std::numeric_limits<float>::max();
+    for (size_t c : members) {
+      for (const auto& point : *clusters[c])
+        top = std::max(top, table.signedDistance(point.getVector3fMap()));
+    }
+    std::vector<Eigen::Vector2f> rim;
     for (size_t c : members) {
       for (const auto& point : *clusters[c]) {
         const Eigen::Vector3f p = point.getVector3fMap();
-        top = std::max(top, table.signedDistance(p));
-        projected.emplace_back(u.dot(p), v.dot(p));
+        if (table.signedDistance(p) >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
       }
     }
-    return Footprint{top, convexHull2d(std::move(projected))};
+    return Footprint{top, convexHull2d(std::move(rim))};
   };
   std::vector<Footprint> footprints(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) footprints[c] = footprintOf({c});

@@ -794,6 +794,42 @@ std::vector<int> underWhichTop(const std::vector<TopFace>& faces, const std::vec
   return face_of;
 }
 
+// Two level faces of one height (within kOneTopFace) that a knob on their top parts are one top:
+// a bottle's cap standing on its shoulder, widened by edge smear, cuts a flattened bottle's
+// shoulder in two (issue 12). The knob's footprint cells lie within the faces' joint outline,
+// rise above them by kTopStep, are too few for a top face of their own, reach within a cell of
+// both faces, and rest on them: their lowest points lie no lower than kTopStep under the faces.
+// A marker standing between two boxes of one height rises from the table: its cells hold its
+// side down to the table, and the boxes stay apart.
+void joinFacesPartedByAKnob(std::vector<TopFace>& faces,
+                            const std::unordered_map<uint64_t, FootprintCell>& cells) {
+  for (size_t i = 0; i < faces.size(); ++i) {
+    for (size_t j = i + 1; j < faces.size(); ++j) {
+      if (std::abs(faces[i].height - faces[j].height) > kOneTopFace) continue;
+      const float level = std::max(faces[i].height, faces[j].height);
+      const float floor = std::min(faces[i].height, faces[j].height) - kTopStep;
+      std::vector<Eigen::Vector2f> both = faces[i].outline;
+      both.insert(both.end(), faces[j].outline.begin(), faces[j].outline.end());
+      std::vector<Eigen::Vector2f> joint = convexHull2d(std::move(both));
+      size_t knob = 0;
+      bool rests = true, reaches_i = false, reaches_j = false;
+      for (const auto& [key, cell] : cells) {
+        const Eigen::Vector2f centre =
+            Eigen::Vector2f(cell.x + 0.5f, cell.y + 0.5f) * kFootprintCell;
+        if (cell.height <= level + kTopStep || insideDistance(joint, centre) < 0.0f) continue;
+        ++knob;
+        rests = rests && cell.low >= floor;
+        reaches_i = reaches_i || insideDistance(faces[i].outline, centre) >= -kFootprintCell;
+        reaches_j = reaches_j || insideDistance(faces[j].outline, centre) >= -kFootprintCell;
+      }
+      if (knob == 0 || knob >= kMinTopCells || !rests || !reaches_i || !reaches_j) continue;
+      faces[i] = {std::move(joint), level};
+      faces.erase(faces.begin() + j);
+      j = i;  // the joined face against the rest again
+    }
+  }
+}
+
 // The part's objects standing side by side, one per top face; the part itself when it has fewer
 // than two top faces, or when a face would hold fewer than min_points (that face is dropped).
 // `own_top_faces`: whether each object returned lies under a level top face of its own.
@@ -812,6 +848,7 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
   std::vector<uint64_t> cell_of_point(cloud.size());
   std::unordered_map<uint64_t, FootprintCell> cells;
   std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cell_of_point, cells);
+  joinFacesPartedByAKnob(faces, cells);
   std::vector<int> face_of;
   while (faces.size() >= 2) {
     face_of = underWhichTop(faces, heights, footprints);

@@ -21,6 +21,28 @@ struct Outcome {
   std::map<std::string, std::vector<double>> errors;  // "object/measure" -> relative errors %
 };
 
+// Scene `index` (0-based) of `benchmark_accuracy --everyday --seed benchmark_seed` on `sensor`,
+// rendered and run through the pipeline as the benchmark runs it (up as from tf2, the sensor's
+// edge smear and near limit).
+struct EverydayRun {
+  RenderedScene scene;
+  SceneResult result;
+};
+EverydayRun runEverydayScene(uint32_t benchmark_seed, int index, SensorModel sensor) {
+  std::mt19937 seeds(benchmark_seed);  // benchmark_accuracy's everyday scene seeds
+  for (int i = 0; i < index; ++i) seeds();
+  EverydayRun run;
+  run.scene = renderScene(everydayScene(static_cast<uint32_t>(seeds()), sensor));
+  const NoiseModel& noise = run.scene.spec.noise;
+  PipelineParams params;
+  params.table.up = run.scene.up;
+  if (noise.enabled && noise.edge_bleeding)
+    params.shapes.edge_bleed_px = static_cast<float>(noise.edge_bleed_px);
+  params.shapes.near_limit = noise.min_range;
+  run.result = Pipeline(params).process(*run.scene.cloud);
+  return run;
+}
+
 // The four objects in a 2 x 2 grid (well apart, so none hides another), cameras at 0.7-1.2 m.
 Outcome runPaperScenes(int scenes, bool auto_up) {
   Outcome outcome;
@@ -256,14 +278,9 @@ TEST(PipelineOnRenderedScenes, RealSenseEverydaySolidsAreNoWiderThanTheObjects) 
 // 1.0-1.6). The box's empty top corners (the camera saw the table through them) now give them
 // to the cylinder standing inside the box.
 TEST(PipelineOnRenderedScenes, RealSenseCansAreCylinders) {
-  std::mt19937 seeds(2012);  // benchmark_accuracy's everyday scene seeds
-  for (int i = 0; i < 13; ++i) seeds();
-  const RenderedScene scene =
-      renderScene(everydayScene(static_cast<uint32_t>(seeds()), SensorModel::RealSenseD435));
-  PipelineParams params;
-  params.table.up = scene.up;
-  params.shapes.edge_bleed_px = static_cast<float>(scene.spec.noise.edge_bleed_px);
-  const SceneResult result = Pipeline(params).process(*scene.cloud);
+  const EverydayRun run = runEverydayScene(2012, 13, SensorModel::RealSenseD435);
+  const RenderedScene& scene = run.scene;
+  const SceneResult& result = run.result;
   const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
   int cans = 0;
   for (const Match& m : matches) {
@@ -281,6 +298,55 @@ TEST(PipelineOnRenderedScenes, RealSenseCansAreCylinders) {
     EXPECT_NEAR(fit.height, truth.height, 0.005f) << truth.name;
   }
   EXPECT_EQ(cans, 2);
+}
+
+// Issue 12's false positives: a flattened bottle's round cap, standing on its shoulder and
+// widened by edge smear, parted the shoulder into two level faces of one height, and the bottle
+// came out as two boxes 23 cm high (benchmark_accuracy --everyday, seed 2012: RealSense scenes 6
+// and 15, Kinect scene 39). The cap rests on both faces: one box, and nothing else near it.
+TEST(PipelineOnRenderedScenes, FlatBottleIsNotHalvedByItsCap) {
+  const std::vector<std::pair<int, SensorModel>> cases = {{5, SensorModel::RealSenseD435},
+                                                          {14, SensorModel::RealSenseD435},
+                                                          {38, SensorModel::KinectV1}};
+  for (const auto& [index, sensor] : cases) {
+    const EverydayRun run = runEverydayScene(2012, index, sensor);
+    const RenderedScene& scene = run.scene;
+    const SceneResult& result = run.result;
+    const auto bottle = std::find_if(scene.objects.begin(), scene.objects.end(),
+                                     [](const auto& o) { return o.name == "flat bottle"; });
+    ASSERT_NE(bottle, scene.objects.end());
+    int near = 0;
+    for (const ShapeFit& fit : result.objects) {
+      if ((fit.center - bottle->center).norm() > 0.1f) continue;
+      ++near;
+      EXPECT_EQ(fit.type, ShapeType::Cube) << sensorName(sensor) << " scene " << index;
+      EXPECT_GT(fit.dimensions.head<2>().maxCoeff(), 0.9f * bottle->dimensions.head<2>().maxCoeff())
+          << sensorName(sensor) << " scene " << index << ": half a bottle";
+    }
+    EXPECT_EQ(near, 1) << sensorName(sensor) << " scene " << index;
+  }
+}
+
+// Issue 12's "never more than 20 % larger", on a Kinect everyday scene of the benchmark (seed 7,
+// scene 8): a box cut by the image border stood behind a flattened bottle, as high as its cap,
+// and the lines of sight to it crossed the cap's height over the bottle's shoulder: it was
+// joined to the bottle as the inside of an open object, and the two came out one cylinder
+// r 49 mm (102 % over the bottle's 50 mm). The opening is what a rim surrounds, not a cap.
+TEST(PipelineOnRenderedScenes, BoxBehindAFlatBottleIsNotItsInside) {
+  const EverydayRun run = runEverydayScene(7, 7, SensorModel::KinectV1);
+  const RenderedScene& scene = run.scene;
+  const SceneResult& result = run.result;
+  const std::vector<Match> matches = matchByCenter(scene.objects, result.objects, 0.1);
+  int checked = 0;
+  for (const Match& m : matches) {
+    const GroundTruthObject& truth = scene.objects[m.truth];
+    if (truth.name != "flat bottle" && truth.name != "border box") continue;
+    ++checked;
+    const ShapeFit& fit = result.objects[m.detection];
+    EXPECT_EQ(fit.type, ShapeType::Cube) << truth.name << ": " << shapeTypeName(fit.type);
+    EXPECT_LT(oversizePercent(truth, fit, scene.up), 20.0) << truth.name;
+  }
+  EXPECT_EQ(checked, 2) << "the bottle and the box, each found";
 }
 
 }  // namespace

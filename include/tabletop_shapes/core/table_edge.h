@@ -24,9 +24,10 @@ struct RejectedCluster {
 // its foot; depth noise and edge bleeding then move some of its points a few centimetres over
 // the hull, and the wall up to table.max_height becomes a "slab" cluster, while the camera looks
 // past it beyond the hull. Such a cluster is recognised by where its points stand and where
-// their lines of sight meet the table: every one within the hull's edge band (hull_margin)
-// widened by the sensor's depth noise at its range (kEdgeNoiseSigmas standard deviations of
-// the table's own noise, which grows with the square of the range), and no point outside the
+// their lines of sight meet the table: all but a few (under kMinShareBeyondTheBand, the tail
+// of the noise and edge bleeding) within the hull's edge band (hull_margin) widened by the
+// sensor's depth noise at its range (kEdgeNoiseSigmas standard deviations of the table's own
+// noise, which grows with the square of the range), and no point outside the
 // hull (a point outside was kept because it stands on the table beyond the image's border:
 // that cluster is cut by the border, not at the table's edge), and no point that stands on the
 // table beyond the image (`view`, when known: its line of sight meets the table within the hull
