@@ -5,6 +5,7 @@
 
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/top_step_split.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
 #include <pcl/segmentation/lccp_segmentation.h>
@@ -358,6 +359,9 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
 // less than kTopFaceStep from their neighbours (Kinect depth steps at 1.3 m are ~5 mm, about
 // 3 mm along up seen 40-55 deg down), the tops of touching neighbours mostly by more.
 constexpr float kTopFaceStep = 0.006f;  // [m]
+// A cell of a top face spreads over at most this [m]: depth noise at 1.3 m spreads a 1 cm
+// cell's points over up to 1 cm along up.
+constexpr float kNoisyTopSpread = 2.0f * kTopFaceStep;
 // A top face is level: its cells' heights spread over less than this [m] (a lying can's or a
 // cone's side chains cells down its slope).
 constexpr float kTopFaceSpread = 0.02f;
@@ -389,6 +393,8 @@ struct FootprintCell {
   // A vertical face (or an edge) projects onto the cell: it joins no top face, or the faces of
   // a box behind a lower one would chain both tops into one region.
   bool steep() const { return height - low > kTopFaceStep; }
+  // Steep by depth noise only: a vertical face or an edge spreads over centimetres.
+  bool noisyTop() const { return height - low <= kNoisyTopSpread; }
 };
 
 struct TopFace {
@@ -623,6 +629,34 @@ std::vector<std::vector<const FootprintCell*>> splitSideBySide(
   return (lid(a) && boxTop(b)) || (lid(b) && boxTop(a)) ? lid_and_box : objects;
 }
 
+// The region's cells under each top it holds: the flood fill chains the tops of touching
+// objects of nearly one height (top_step_split.h).
+std::vector<std::vector<const FootprintCell*>> topsOf(
+    const std::vector<const FootprintCell*>& region) {
+  std::vector<HeightCell> heights;
+  for (const FootprintCell* cell : region) heights.push_back({cell->x, cell->y, cell->height});
+  std::vector<std::vector<const FootprintCell*>> tops;
+  for (const std::vector<int>& top : splitAtTopSteps(heights, kMinTopCells)) {
+    tops.emplace_back();
+    for (int i : top) tops.back().push_back(region[i]);
+  }
+  return tops;
+}
+
+// The cells within `outline` (cell centres) whose highest point lies at the level of a face
+// from `bottom` to `top` (within kTopFaceStep): the face's own cells and the noisy ones of it
+// that depth noise made steep (at 1.1-1.3 m a third of a box top's 1 cm cells spread over more
+// than kTopFaceStep; issue 15).
+size_t levelCellsWithin(const std::vector<Eigen::Vector2f>& outline, float bottom, float top,
+                        const std::unordered_map<uint64_t, FootprintCell>& cells) {
+  size_t level = 0;
+  for (const auto& [key, cell] : cells) {
+    level += cell.height >= bottom - kTopFaceStep && cell.height <= top + kTopFaceStep &&
+             insideDistance(outline, {cell.x + 0.5f, cell.y + 0.5f}) >= 0.0f;
+  }
+  return level;
+}
+
 // The level top faces of the cluster's objects: regions of the height grid of at least
 // kMinTopCells cells, level and filled, not lying within the outline of a higher region (the
 // inside of a cup or bowl seen within its rim).
@@ -641,29 +675,43 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
       it->second.low = std::min(it->second.low, heights[i]);
     }
   }
-  // Regions: flood fill over the 8 neighbours within kTopFaceStep, steep cells left out.
+  // Regions: flood fill over the 8 neighbours within kTopFaceStep, steep cells left out. A steep
+  // cell whose highest point lies at the level of the cell beside it is a noisy cell of the same
+  // top (a third of a box top's cells at 1.1-1.3 m): the fill goes on across it, else pieces of
+  // one top cut apart by noisy cells would be faces of their own.
   std::vector<std::vector<const FootprintCell*>> regions;
   std::vector<uint64_t> stack;
+  auto forNeighbourCells = [&](const FootprintCell& cell, auto&& visit) {
+    for (int64_t dx = -1; dx <= 1; ++dx) {
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        const uint64_t key = voxel_key::pack(cell.x + dx, cell.y + dy, 0);
+        auto next = cells.find(key);
+        if ((dx || dy) && next != cells.end()) visit(key, next->second);
+      }
+    }
+  };
   for (auto& [key, seed] : cells) {
     if (seed.region >= 0 || seed.steep()) continue;
     seed.region = static_cast<int>(regions.size());
     regions.emplace_back(1, &seed);
     stack.assign(1, key);
+    auto reach = [&](float from_height, uint64_t next_key, FootprintCell& next) {
+      if (next.region >= 0 || next.steep() || std::abs(next.height - from_height) > kTopFaceStep)
+        return;
+      next.region = seed.region;
+      regions.back().push_back(&next);
+      stack.push_back(next_key);
+    };
     while (!stack.empty()) {
       const FootprintCell& cell = cells.at(stack.back());
       stack.pop_back();
-      for (int64_t dx = -1; dx <= 1; ++dx) {
-        for (int64_t dy = -1; dy <= 1; ++dy) {
-          const uint64_t next_key = voxel_key::pack(cell.x + dx, cell.y + dy, 0);
-          auto next = cells.find(next_key);
-          if (next == cells.end() || next->second.region >= 0 || next->second.steep() ||
-              std::abs(next->second.height - cell.height) > kTopFaceStep)
-            continue;
-          next->second.region = seed.region;
-          regions.back().push_back(&next->second);
-          stack.push_back(next_key);
-        }
-      }
+      forNeighbourCells(cell, [&](uint64_t next_key, FootprintCell& next) {
+        if (!next.steep()) return reach(cell.height, next_key, next);
+        if (!next.noisyTop() || std::abs(next.height - cell.height) > kTopFaceStep) return;
+        forNeighbourCells(next, [&](uint64_t across_key, FootprintCell& across) {
+          reach(next.height, across_key, across);
+        });
+      });
     }
   }
   // Regions of several objects of the same height parted at their necks, when they nearly fill
@@ -677,13 +725,16 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     return hull.size() >= 3 && region.size() >= kNeckSplitFill * filledCells(hull);
   };
   std::vector<std::vector<const FootprintCell*>> objects;
-  for (const auto& region : regions) {
-    const bool two_side_by_side = region.size() >= 2 * kMinTopCells && nearlyConvex(region);
-    for (auto& object : two_side_by_side ? splitSideBySide(region)
-                                         : std::vector<std::vector<const FootprintCell*>>{region}) {
-      for (const FootprintCell* cell : object)
-        cells.at(voxel_key::pack(cell->x, cell->y, 0)).region = static_cast<int>(objects.size());
-      objects.push_back(std::move(object));
+  for (const auto& chained : regions) {
+    for (const auto& region : topsOf(chained)) {
+      const bool two_side_by_side = region.size() >= 2 * kMinTopCells && nearlyConvex(region);
+      for (auto& object : two_side_by_side
+                              ? splitSideBySide(region)
+                              : std::vector<std::vector<const FootprintCell*>>{region}) {
+        for (const FootprintCell* cell : object)
+          cells.at(voxel_key::pack(cell->x, cell->y, 0)).region = static_cast<int>(objects.size());
+        objects.push_back(std::move(object));
+      }
     }
   }
   regions = std::move(objects);
@@ -707,7 +758,9 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     if (outlines[r].size() < 3 || top[r] - bottom[r] > kTopFaceSpread ||
         widthOf(outlines[r]) + 1.0f < kTopFaceWidth)
       continue;
-    if (regions[r].size() < kTopFaceFill * filledCells(outlines[r])) continue;
+    if (levelCellsWithin(outlines[r], bottom[r], top[r], cells) <
+        kTopFaceFill * filledCells(outlines[r]))
+      continue;
     auto withinHigher = [&](size_t higher) {
       if (higher == r || outlines[higher].size() < 3 || top[higher] <= top[r] + kTopFaceStep)
         return false;
