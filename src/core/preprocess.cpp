@@ -7,14 +7,16 @@
 // same surface. Dropping them keeps objects one behind the other from being bridged into one
 // cluster.
 //
-// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a single pass packs each
-// valid point's integer voxel coordinates into a 63-bit key and adds the point to that voxel's
-// running sum, found through an open-addressing hash table. Consecutive pixels of an organised
-// cloud mostly share a voxel, so the last voxel is tried first. The table and the sums are
-// members and are reused from frame to frame; the output lists the voxels in the order they
-// are first met, so it is deterministic.
+// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
+// on all cores decides each pixel (flying, out of range) and packs a kept point's integer voxel
+// coordinates into a 63-bit key; a single pass in image order then adds each point to its
+// voxel's running sum, found through an open-addressing hash table. Neighbouring pixels of an
+// organised cloud mostly share a voxel, so the left and the upper pixel's voxels are tried first.
+// The table and the sums are members and are reused from frame to frame; the output lists the
+// voxels in the order they are first met, so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
 #include <algorithm>
@@ -33,14 +35,18 @@ inline bool finitePoint(float x, float y, float z) {
 }  // namespace
 
 template <typename PointT>
-void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
-  const int width = static_cast<int>(in.width), height = static_cast<int>(in.height);
-  flying_.assign(in.points.size(), 0);
+void Preprocessor::keyPixels(const pcl::PointCloud<PointT>& in, int width, int height,
+                             bool drop_flying) {
+  keys_.resize(in.points.size());
+  const bool limit_range = params_.max_range > 0.0f;
+  const float max_range_sq = params_.max_range * params_.max_range;
+  const bool grid = params_.leaf_size > 0.0f;
+  const float inv_leaf = grid ? 1.0f / params_.leaf_size : 0.0f;
   // Neighbour q of p lies within the angle a of p's line of sight when
   // along^2 > cot^2(a) * across^2, with along = (q - p).p / |p|, across^2 = |q - p|^2 - along^2,
   // i.e. ((q - p).p)^2 * (1 + cot^2(a)) > cot^2(a) * |q - p|^2 * |p|^2 (no square roots), with p
   // taken from the sensor origin.
-  const float cot = 1.0f / std::tan(degToRad(params_.flying_pixel_angle_deg));
+  const float cot = drop_flying ? 1.0f / std::tan(degToRad(params_.flying_pixel_angle_deg)) : 0.0f;
   const float cot_sq = cot * cot, along_weight = 1.0f + cot_sq;
   // Lines of sight start at the cloud's sensor origin (the frame's origin for a camera frame).
   const float eye_x = in.sensor_origin_.x(), eye_y = in.sensor_origin_.y(),
@@ -50,32 +56,61 @@ void Preprocessor::markFlyingPixels(const pcl::PointCloud<PointT>& in) {
     const float dot = dx * (p.x - eye_x) + dy * (p.y - eye_y) + dz * (p.z - eye_z);
     return dot * dot * along_weight <= cot_sq * (dx * dx + dy * dy + dz * dz) * sight_sq;
   };
-  const int du[] = {1, 0, 0, -1, 1, -1, 1}, dv[] = {0, -1, 1, -1, -1, 1, 1};
-  for (int v = 0; v < height; ++v) {
-    const PointT* row = &in.points[static_cast<size_t>(v) * width];
-    for (int u = 0; u < width; ++u) {
-      const PointT& p = row[u];
-      if (!std::isfinite(p.z)) continue;  // depth cameras mark missing depth in z
-      const float sx = p.x - eye_x, sy = p.y - eye_y, sz = p.z - eye_z;
-      const float sight_sq = sx * sx + sy * sy + sz * sz;
-      // The left neighbour first: on most surfaces it already clears the point.
-      bool any_neighbour = u > 0 && std::isfinite(row[u - 1].z);
-      if (any_neighbour && onSurface(p, sight_sq, row[u - 1])) continue;
-      bool on_surface = false;
-      for (int n = 0; n < 7 && !on_surface; ++n) {
-        const int nu = u + du[n], nv = v + dv[n];
-        if (static_cast<unsigned>(nu) >= static_cast<unsigned>(width) ||
-            static_cast<unsigned>(nv) >= static_cast<unsigned>(height))
-          continue;
-        const PointT& q = in.points[static_cast<size_t>(nv) * width + nu];
-        if (!std::isfinite(q.z)) continue;
-        any_neighbour = true;
-        on_surface = onSurface(p, sight_sq, q);
-      }
-      // A point without any valid neighbour gives no evidence either way: kept.
-      flying_[static_cast<size_t>(v) * width + u] = any_neighbour && !on_surface;
+  auto flying = [&](const PointT* row, int u, int v) {
+    const PointT& p = row[u];
+    const float sx = p.x - eye_x, sy = p.y - eye_y, sz = p.z - eye_z;
+    const float sight_sq = sx * sx + sy * sy + sz * sz;
+    // The left neighbour first: on most surfaces it already clears the point.
+    bool any_neighbour = u > 0 && std::isfinite(row[u - 1].z);
+    if (any_neighbour && onSurface(p, sight_sq, row[u - 1])) return false;
+    static constexpr int du[] = {1, 0, 0, -1, 1, -1, 1}, dv[] = {0, -1, 1, -1, -1, 1, 1};
+    for (int n = 0; n < 7; ++n) {
+      const int nu = u + du[n], nv = v + dv[n];
+      if (static_cast<unsigned>(nu) >= static_cast<unsigned>(width) ||
+          static_cast<unsigned>(nv) >= static_cast<unsigned>(height))
+        continue;
+      const PointT& q = in.points[static_cast<size_t>(nv) * width + nu];
+      if (!std::isfinite(q.z)) continue;
+      any_neighbour = true;
+      if (onSurface(p, sight_sq, q)) return false;
     }
-  }
+    // A point without any valid neighbour gives no evidence either way: kept.
+    return any_neighbour;
+  };
+  const float limit = voxel_key::kLimit;
+  auto keyRows = [&](int first_row, int end_row) {
+    for (int v = first_row; v < end_row; ++v) {
+      const PointT* row = &in.points[static_cast<size_t>(v) * width];
+      uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
+      for (int u = 0; u < width; ++u) {
+        const PointT& p = row[u];
+        keys[u] = voxel_key::kEmpty;
+        // Depth cameras mark missing depth in z. The costly flying pixel test last.
+        if (!finitePoint(p.x, p.y, p.z)) continue;
+        if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) continue;
+        if (drop_flying && flying(row, u, v)) continue;
+        if (!grid) {
+          keys[u] = 0;  // kept; no voxel
+          continue;
+        }
+        const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
+        // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
+        if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
+        keys[u] = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+      }
+    }
+  };
+  // Each pixel's key depends on the input alone: bands of rows on all cores. More bands than
+  // cores, so that a core slowed by other work takes fewer.
+  const unsigned threads = workerThreads();
+  const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
+  parallelFor(
+      static_cast<size_t>(bands),
+      [&](size_t band) {
+        keyRows(static_cast<int>(band * height / bands),
+                static_cast<int>((band + 1) * height / bands));
+      },
+      threads);
 }
 
 void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out) {
@@ -98,7 +133,7 @@ void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& ou
 
 size_t Preprocessor::bufferBytes() const {
   return slots_.capacity() * sizeof(VoxelSlot) + sums_.capacity() * sizeof(VoxelSum) +
-         flying_.capacity();
+         keys_.capacity() * sizeof(uint64_t) + row_voxels_.capacity() * sizeof(uint32_t);
 }
 
 void Preprocessor::releaseOversizedBuffers(size_t input_points) {
@@ -111,8 +146,15 @@ void Preprocessor::releaseOversizedBuffers(size_t input_points) {
   if (sums_.capacity() * sizeof(VoxelSum) > kKeepBytes && sums_.capacity() > kSlack * voxels) {
     sums_.shrink_to_fit();
   }
-  if (flying_.capacity() > kKeepBytes && flying_.capacity() > kSlack * input_points) {
-    std::vector<uint8_t>().swap(flying_);
+  // One key per input point: kept while frames of about this size come.
+  constexpr size_t kKeySlack = 2;
+  if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
+      keys_.capacity() > kKeySlack * input_points) {
+    std::vector<uint64_t>().swap(keys_);
+  }
+  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
+      row_voxels_.capacity() > kKeySlack * input_points) {
+    std::vector<uint32_t>().swap(row_voxels_);
   }
 }
 
@@ -126,28 +168,23 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   out.sensor_origin_ = in.sensor_origin_;
   out.sensor_orientation_ = in.sensor_orientation_;
 
+  // An unorganised cloud is one row without image neighbours (no flying pixels).
   const bool organised = in.height > 1 && static_cast<size_t>(in.width) * in.height == in.size();
-  const bool drop_flying = organised && params_.flying_pixel_angle_deg > 0.0f;
-  if (drop_flying) markFlyingPixels(in);
-  const bool limit_range = params_.max_range > 0.0f;
-  const float max_range_sq = params_.max_range * params_.max_range;
-  auto keep = [&](const PointT& p, size_t i) {
-    if (!finitePoint(p.x, p.y, p.z) || (drop_flying && flying_[i])) return false;
-    return !limit_range || p.x * p.x + p.y * p.y + p.z * p.z <= max_range_sq;
-  };
+  const int width = organised ? static_cast<int>(in.width) : static_cast<int>(in.size());
+  const int height = organised ? static_cast<int>(in.height) : 1;
+  keyPixels(in, width, height, organised && params_.flying_pixel_angle_deg > 0.0f);
 
   if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
     out.points.reserve(in.points.size());
     for (size_t i = 0; i < in.points.size(); ++i) {
       const PointT& p = in.points[i];
-      if (keep(p, i)) out.points.emplace_back(p.x, p.y, p.z);
+      if (keys_[i] != voxel_key::kEmpty) out.points.emplace_back(p.x, p.y, p.z);
     }
     out.width = static_cast<uint32_t>(out.points.size());
     releaseOversizedBuffers(in.points.size());
     return;
   }
 
-  const float inv_leaf = 1.0f / params_.leaf_size;
   // Keep the table at most half full: start from the last frame's size, grow when needed.
   size_t capacity = std::max<size_t>(slots_.size(), 1024);
   slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
@@ -162,37 +199,47 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
       slots_[slot] = {key, voxel};
     }
   };
+  auto voxelOf = [&](uint64_t key) {
+    size_t slot = voxel_key::hash(key) & (capacity - 1);
+    while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
+      slot = (slot + 1) & (capacity - 1);
+    }
+    if (slots_[slot].key == voxel_key::kEmpty) {
+      if (2 * (sums_.size() + 1) > capacity) {
+        grow();
+        slot = voxel_key::hash(key) & (capacity - 1);
+        while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
+      }
+      slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
+      sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
+    }
+    return slots_[slot].voxel;
+  };
 
+  // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
+  // (row_voxels_ keeps the previous row's voxels) is taken without a hash lookup.
+  const bool rows = height > 1;
+  row_voxels_.resize(rows ? 2 * static_cast<size_t>(width) : 0);
+  uint32_t* above = row_voxels_.data();
+  uint32_t* current = rows ? above + width : nullptr;
   uint64_t last_key = voxel_key::kEmpty;
   uint32_t last_voxel = 0;
-  const float limit = voxel_key::kLimit;
-  for (size_t i = 0; i < in.points.size(); ++i) {
-    const PointT& p = in.points[i];
-    if (!keep(p, i)) continue;
-    const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
-    // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
-    if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
-    const uint64_t key = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
-    if (key != last_key) {
-      size_t slot = voxel_key::hash(key) & (capacity - 1);
-      while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
-        slot = (slot + 1) & (capacity - 1);
+  for (int v = 0; v < height; ++v) {
+    const size_t row = static_cast<size_t>(v) * width;
+    for (int u = 0; u < width; ++u) {
+      const uint64_t key = keys_[row + u];
+      if (key == voxel_key::kEmpty) continue;
+      if (key != last_key) {
+        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : voxelOf(key);
+        last_key = key;
       }
-      if (slots_[slot].key == voxel_key::kEmpty) {
-        if (2 * (sums_.size() + 1) > capacity) {
-          grow();
-          slot = voxel_key::hash(key) & (capacity - 1);
-          while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-        }
-        slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
-        sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
-      }
-      last_key = key;
-      last_voxel = slots_[slot].voxel;
+      if (rows) current[u] = last_voxel;
+      const PointT& p = in.points[row + u];
+      VoxelSum& sum = sums_[last_voxel];
+      sum.x += p.x, sum.y += p.y, sum.z += p.z;
+      ++sum.count;
     }
-    VoxelSum& sum = sums_[last_voxel];
-    sum.x += p.x, sum.y += p.y, sum.z += p.z;
-    ++sum.count;
+    std::swap(above, current);
   }
 
   out.points.reserve(sums_.size());

@@ -1,6 +1,8 @@
 // §2.1 preprocessing: known-answer tests of the range filter and the centroid voxel grid.
 #include "tabletop_shapes/core/preprocess.h"
 
+#include "tabletop_shapes/core/parallel.h"
+
 #include <gtest/gtest.h>
 #include <pcl/common/io.h>
 
@@ -132,6 +134,25 @@ TEST(Preprocess, OrganisedVgaMatchesReferenceGrid) {
     }
     EXPECT_EQ(matched, reference.size());
   }
+}
+
+// The pixels are judged on bands of rows on all worker threads: the cloud is the same, point for
+// point and in order, whatever their number.
+TEST(Preprocess, SameCloudWithOneTwoAndFiveThreads) {
+  const pcl::PointCloud<pcl::PointXYZ> in = vgaCloud();
+  Cloud reference, out;
+  setWorkerThreads(1);
+  Preprocessor().apply(in, reference);
+  ASSERT_GT(reference.size(), 10000u);
+  for (const unsigned threads : {2u, 5u}) {
+    setWorkerThreads(threads);
+    Preprocessor().apply(in, out);
+    ASSERT_EQ(out.size(), reference.size()) << threads << " threads";
+    for (size_t i = 0; i < out.size(); ++i) {
+      ASSERT_EQ(out[i].getVector3fMap(), reference[i].getVector3fMap()) << i;
+    }
+  }
+  setWorkerThreads(0);
 }
 
 TEST(Preprocess, ColourInputGivesTheSameCloudAndInPlaceWorks) {

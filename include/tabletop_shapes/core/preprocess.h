@@ -26,8 +26,10 @@ class Preprocessor {
  private:
   template <typename PointT>
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out);
+  // keys_[i]: input point i's voxel key (0 without a voxel grid), kEmpty when it is dropped
+  // (not finite, flying pixel, beyond the range). The image is width x height points.
   template <typename PointT>
-  void markFlyingPixels(const pcl::PointCloud<PointT>& in);
+  void keyPixels(const pcl::PointCloud<PointT>& in, int width, int height, bool drop_flying);
   void releaseOversizedBuffers(size_t input_points);
 
   PreprocessParams params_;
@@ -42,8 +44,9 @@ class Preprocessor {
     uint32_t count;
   };
   std::vector<VoxelSlot> slots_;
-  std::vector<VoxelSum> sums_;   // in order of first appearance: deterministic output
-  std::vector<uint8_t> flying_;  // per input pixel: 1 = flying pixel; reused between frames
+  std::vector<VoxelSum> sums_;        // in order of first appearance: deterministic output
+  std::vector<uint64_t> keys_;        // per input point (keyPixels); reused between frames
+  std::vector<uint32_t> row_voxels_;  // the voxels of the last two image rows' points
 };
 
 }  // namespace tabletop_shapes
