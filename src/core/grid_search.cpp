@@ -1,5 +1,6 @@
 #include "tabletop_shapes/core/grid_search.h"
 
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
 #include <pcl/kdtree/kdtree_flann.h>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
 
 namespace tabletop_shapes {
@@ -247,9 +249,9 @@ int GridSearch<PointT>::nearestKSearch(const PointT& point, int k, pcl::Indices&
 
 template <typename PointT>
 template <typename Start, typename Gather, typename Select>
-void GridSearch<PointT>::forEachPointInBlocks(Start&& start, Gather&& gather,
-                                              Select&& select) const {
-  for (size_t begin = 0; begin < points_.size();) {
+void GridSearch<PointT>::forEachPointInBlocks(size_t first, size_t last, Start&& start,
+                                              Gather&& gather, Select&& select) const {
+  for (size_t begin = first; begin < last;) {
     const Run run = runAt(begin);
     // Every point of the 3 x 3 x 3 block of cells around this one.
     start();
@@ -272,64 +274,88 @@ void GridSearch<PointT>::forEachPointInBlocks(Start&& start, Gather&& gather,
 }
 
 template <typename PointT>
+size_t GridSearch<PointT>::runStartAtOrAfter(size_t position) const {
+  if (position == 0 || position >= points_.size()) return std::min(position, points_.size());
+  const Entry& p = points_[position];
+  const Cell* cell = find(keyOf(static_cast<int>(voxel_key::floorToInt(p.x * inv_cell_)),
+                                static_cast<int>(voxel_key::floorToInt(p.y * inv_cell_)),
+                                static_cast<int>(voxel_key::floorToInt(p.z * inv_cell_))));
+  return cell->begin == position ? position : cell->end;
+}
+
+template <typename PointT>
 void GridSearch<PointT>::forEachNearestK(
-    int k, const std::function<void(int, const std::vector<float>&)>& visit, bool ascending) const {
-  if (k <= 0) return;
+    int k, const std::function<void(int, const std::vector<float>&)>& visit, bool ascending,
+    unsigned threads) const {
+  if (k <= 0 || points_.empty()) return;
   const size_t wanted = static_cast<size_t>(k);
-  std::vector<float> xs, ys, zs, block_squared, squared, nearest;
-  pcl::Indices fallback_indices;
+  // A k-d tree, not the grid's growing rings, for the points whose k nearest the block does not
+  // hold: those are the sparse ones (flying pixels, edges), whose rings run through many empty
+  // cells before k points turn up. It finds the same distances (FLANN sums the squares in the
+  // same order); built once, at the first such point, and shared by the threads (its searches
+  // only read it).
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
-  // The previous point of the same cell and its k-th distance: the k nearest of q lie within
-  // that distance plus |q - previous| (triangle inequality), a ball far smaller than the block
-  // on a surface, so the selection below runs on half the candidates.
-  const Entry* previous = nullptr;
-  float previous_kth = 0.0f;
-  forEachPointInBlocks(
-      [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
-      [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
-      [&](const Entry& q, float covered_squared) {
-        squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
-        // Keeps the candidates with squared distance <= bound: when they are at least k, the
-        // k smallest of them are the k smallest of the block (exact whatever the bound).
-        auto keepWithin = [&](float bound) {
-          squared.resize(xs.size());
+  std::once_flag fallback_built;
+  // Whole runs (cells) per part, so that each point sees the same previous point as in one pass.
+  threads = std::max(1u, threads);
+  const size_t parts = threads > 1 ? std::min<size_t>(4 * threads, points_.size()) : 1;
+  std::vector<size_t> bounds(parts + 1);
+  for (size_t part = 0; part <= parts; ++part) {
+    bounds[part] = runStartAtOrAfter(part * points_.size() / parts);
+  }
+  auto nearestInPart = [&](size_t part) {
+    std::vector<float> xs, ys, zs, block_squared, squared, nearest;
+    pcl::Indices fallback_indices;
+    // The previous point of the same cell and its k-th distance: the k nearest of q lie within
+    // that distance plus |q - previous| (triangle inequality), a ball far smaller than the
+    // block on a surface, so the selection below runs on half the candidates.
+    const Entry* previous = nullptr;
+    float previous_kth = 0.0f;
+    forEachPointInBlocks(
+        bounds[part], bounds[part + 1],
+        [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
+        [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
+        [&](const Entry& q, float covered_squared) {
+          squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
+          // Keeps the candidates with squared distance <= bound: when they are at least k, the
+          // k smallest of them are the k smallest of the block (exact whatever the bound).
+          auto keepWithin = [&](float bound) {
+            squared.resize(xs.size());
+            size_t kept = 0;
+            for (const float d : block_squared) {
+              squared[kept] = d;
+              kept += d <= bound;
+            }
+            squared.resize(kept);
+            return kept;
+          };
           size_t kept = 0;
-          for (const float d : block_squared) {
-            squared[kept] = d;
-            kept += d <= bound;
+          if (previous) {
+            const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
+            // 1e-4 relative slack for the float rounding of the distances.
+            const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
+            if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
           }
-          squared.resize(kept);
-          return kept;
-        };
-        size_t kept = 0;
-        if (previous) {
-          const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
-          // 1e-4 relative slack for the float rounding of the distances.
-          const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
-          if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
-        }
-        if (kept < wanted) kept = keepWithin(covered_squared);
-        if (kept >= wanted) {
-          std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
-          nearest.assign(squared.begin(), squared.begin() + wanted);
-          previous = &q;
-          previous_kth = std::sqrt(nearest.back());
-          if (ascending) std::sort(nearest.begin(), nearest.end());
-        } else {
-          // A k-d tree, not the grid's growing rings: the points that get here are the sparse
-          // ones (flying pixels, edges), whose rings run through many empty cells before k
-          // points turn up. It finds the same distances (FLANN sums the squares in the same
-          // order) and is built at the first such point.
-          if (!fallback) {
-            fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
-            fallback->setInputCloud(this->input_, this->indices_);
+          if (kept < wanted) kept = keepWithin(covered_squared);
+          if (kept >= wanted) {
+            std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
+            nearest.assign(squared.begin(), squared.begin() + wanted);
+            previous = &q;
+            previous_kth = std::sqrt(nearest.back());
+            if (ascending) std::sort(nearest.begin(), nearest.end());
+          } else {
+            std::call_once(fallback_built, [&] {
+              fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
+              fallback->setInputCloud(this->input_, this->indices_);
+            });
+            PointT point;
+            point.x = q.x, point.y = q.y, point.z = q.z;
+            fallback->nearestKSearch(point, k, fallback_indices, nearest);
           }
-          PointT point;
-          point.x = q.x, point.y = q.y, point.z = q.z;
-          fallback->nearestKSearch(point, k, fallback_indices, nearest);
-        }
-        visit(q.index, nearest);
-      });
+          visit(q.index, nearest);
+        });
+  };
+  parallelFor(parts, nearestInPart, threads);
 }
 
 template <typename PointT>
@@ -342,7 +368,7 @@ void GridSearch<PointT>::forEachNearestKIndices(
   std::vector<uint64_t> keys;
   pcl::Indices nearest;
   forEachPointInBlocks(
-      [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
+      0, points_.size(), [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
       [&](const Entry& e) {
         xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
       },

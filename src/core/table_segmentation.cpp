@@ -4,10 +4,12 @@
 
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/parallel.h"
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cmath>
 #include <cstdint>
@@ -982,15 +984,16 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
   GridSearch<Point> search(kOutlierSearchCell);
   search.setInputCloud(in);
   std::vector<float> distances(in->size(), 0.0f);  // points without neighbours: 0, as PCL
-  int valid_count = 0;
-  std::vector<float> sorted;
+  std::atomic<int> valid_count{0};
+  // On all cores: each point's distance depends on its neighbours alone.
   search.forEachNearestK(
       k + 1,
       [&](int i, const std::vector<float>& squared) {
+        thread_local std::vector<float> sorted;
         distances[i] = static_cast<float>(sumOfDistancesButTheNearest(squared, sorted) / k);
         ++valid_count;
       },
-      false);
+      false, workerThreads());
   double sum = 0.0, squared_sum = 0.0;
   for (const float distance : distances) {
     sum += distance;

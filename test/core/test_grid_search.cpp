@@ -106,12 +106,13 @@ TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
 TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
   // 3 cm cells as the outlier removal uses them; ascending, and in any order (the same
   // multiset): the surface's points bound their selection by their cell neighbour's k-th
-  // distance, the sparse points around it need the fallback search.
+  // distance, the sparse points around it need the fallback search. On 3 threads (cells shared
+  // out, visits concurrent) the same lists.
   const CloudPtr cloud = surfaceCloud();
   GridSearch<Point> search(0.03f);
   search.setInputCloud(cloud);
   constexpr int k = 51;
-  for (const bool ascending : {true, false}) {
+  for (const auto [ascending, threads] : {std::pair{true, 1u}, {false, 1u}, {true, 3u}}) {
     std::vector<int> visits(cloud->size(), 0);
     search.forEachNearestK(
         k,
@@ -131,9 +132,10 @@ TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
           } else {
             std::sort(found.begin(), found.end());
           }
-          EXPECT_EQ(found, expected) << "point " << i << (ascending ? ", ascending" : "");
+          EXPECT_EQ(found, expected)
+              << "point " << i << (ascending ? ", ascending" : "") << ", " << threads << " threads";
         },
-        ascending);
+        ascending, threads);
     for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
     EXPECT_EQ(visits.back(), 0);
   }

@@ -43,9 +43,10 @@ class GridSearch : public pcl::search::Search<PointT> {
   // distances) with the k smallest squared distances in ascending order (the point itself
   // first, at 0), or in no order when !ascending (cheaper: no sort), points in no particular
   // order. Faster than one nearestKSearch per point: the candidates around each cell are
-  // gathered once for all the points in it.
+  // gathered once for all the points in it. threads > 1: the cells are shared out among that
+  // many threads, which call visit concurrently (for different points), with the same lists.
   void forEachNearestK(int k, const std::function<void(int, const std::vector<float>&)>& visit,
-                       bool ascending = true) const;
+                       bool ascending = true, unsigned threads = 1) const;
   // The same with the neighbours' input indices: visit(index, the k nearest, nearest first,
   // equal distances by index), the lists one nearestKSearch per point gives.
   void forEachNearestKIndices(int k,
@@ -83,11 +84,16 @@ class GridSearch : public pcl::search::Search<PointT> {
     size_t end;
   };
   Run runAt(size_t begin) const;
-  // For each run of points_ in one cell: start(), gather(entry) for every point of the 3 x 3 x
-  // 3 block of cells around it, then select(q, covered_squared) for each point q of the run:
-  // the block holds every point whose squared distance from q is at most covered_squared.
+  // For each run of points_[first, last) in one cell (first and last: run starts or the end):
+  // start(), gather(entry) for every point of the 3 x 3 x 3 block of cells around it, then
+  // select(q, covered_squared) for each point q of the run: the block holds every point whose
+  // squared distance from q is at most covered_squared.
   template <typename Start, typename Gather, typename Select>
-  void forEachPointInBlocks(Start&& start, Gather&& gather, Select&& select) const;
+  void forEachPointInBlocks(size_t first, size_t last, Start&& start, Gather&& gather,
+                            Select&& select) const;
+  // The start of the run holding points_[position], or of the next run when it starts inside
+  // one; points_.size() at the end.
+  size_t runStartAtOrAfter(size_t position) const;
   // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>
