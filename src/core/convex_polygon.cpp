@@ -77,6 +77,17 @@ std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
   return hull;
 }
 
+namespace {
+
+// Distance of q from the line through `from` along `along` (of length `length`), positive on its
+// left: inside for a counter-clockwise polygon's edge.
+inline float leftOf(const Eigen::Vector2f& from, const Eigen::Vector2f& along, float length,
+                    const Eigen::Vector2f& q) {
+  return (along.x() * (q.y() - from.y()) - along.y() * (q.x() - from.x())) / length;
+}
+
+}  // namespace
+
 float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& q) {
   float nearest = std::numeric_limits<float>::max();
   for (size_t i = 0; i < hull.size(); ++i) {
@@ -84,11 +95,35 @@ float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vect
     const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - a;
     const float length = edge.norm();
     if (length <= 0.0f) continue;
-    // Left of a counter-clockwise edge is inside.
-    const float distance = (edge.x() * (q.y() - a.y()) - edge.y() * (q.x() - a.x())) / length;
-    nearest = std::min(nearest, distance);
+    nearest = std::min(nearest, leftOf(a, edge, length, q));
   }
   return nearest;
+}
+
+PolygonEdges::PolygonEdges(const std::vector<Eigen::Vector2f>& hull) {
+  edges_.reserve(hull.size());
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - hull[i];
+    const float length = edge.norm();
+    if (length <= 0.0f) continue;  // counts for nothing, as in insideDistance
+    edges_.push_back({hull[i], edge, length});
+  }
+}
+
+float PolygonEdges::insideDistance(const Eigen::Vector2f& q) const {
+  float nearest = std::numeric_limits<float>::max();
+  for (const Edge& edge : edges_)
+    nearest = std::min(nearest, leftOf(edge.from, edge.along, edge.length, q));
+  return nearest;
+}
+
+bool PolygonEdges::insideBy(const Eigen::Vector2f& q, float margin) const {
+  // The minimum exceeds the margin when every edge's distance does (a NaN one never lowers
+  // the minimum, nor stops here).
+  for (const Edge& edge : edges_) {
+    if (leftOf(edge.from, edge.along, edge.length, q) <= margin) return false;
+  }
+  return std::numeric_limits<float>::max() > margin;
 }
 
 }  // namespace tabletop_shapes

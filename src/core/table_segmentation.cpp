@@ -92,7 +92,8 @@ struct Candidate {
   std::vector<int> inliers;
   std::vector<Eigen::Vector3f> hull;  // 3-D, on the plane, counter-clockwise about the normal
   std::vector<Eigen::Vector2f> hull_2d;
-  Eigen::Vector3f u, v;  // in-plane basis of hull_2d
+  PolygonEdges hull_edges;  // of hull_2d: the point-in-hull tests of whole frames
+  Eigen::Vector3f u, v;     // in-plane basis of hull_2d
   float area = 0.0f;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
 };
@@ -259,6 +260,7 @@ void buildHull(const Cloud& cloud, Candidate& candidate) {
     projected.emplace_back(candidate.u.dot(p), candidate.v.dot(p));
   }
   candidate.hull_2d = convexHull2d(std::move(projected));
+  candidate.hull_edges = PolygonEdges(candidate.hull_2d);
   const Eigen::Vector3f origin = -candidate.plane.d * n;  // the plane point nearest the origin
   candidate.hull.clear();
   candidate.area = 0.0f;
@@ -305,7 +307,7 @@ bool standsBeyondTheImage(const Eigen::Vector3f& p, float height, const Candidat
   if (!(height < eye_height)) return false;  // the line of sight does not reach the table
   const Eigen::Vector3f crossing = eye + (p - eye) * (eye_height / (eye_height - height));
   const Eigen::Vector2f q(candidate.u.dot(crossing), candidate.v.dot(crossing));
-  if (!(insideDistance(candidate.hull_2d, q) > 0.0f)) return false;
+  if (!candidate.hull_edges.insideBy(q, 0.0f)) return false;
   const Eigen::Vector3f foot = p - height * candidate.plane.normal;
   if (!(foot.z() > 0.0f)) return true;  // behind the camera
   const Eigen::Vector2f tangent(foot.x() / foot.z(), foot.y() / foot.z());
@@ -336,7 +338,7 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
     const float height = candidate.plane.signedDistance(p);
     if (height < params.min_height || height > params.max_height) continue;
     const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-    const float inside = insideDistance(candidate.hull_2d, q);
+    const float inside = candidate.hull_edges.insideDistance(q);
     if (inside >= params.hull_margin) {
       if (inside < params.hull_margin + kEdgeLinkDistance) {
         reaching_the_band.push_back(static_cast<int>(indices.size()));
@@ -485,7 +487,7 @@ float hullCoverage(const Cloud& cloud, const Candidate& candidate) {
     for (int column = 0; column < columns; ++column) {
       const Eigen::Vector2f centre =
           low + kCoverageCell * Eigen::Vector2f(column + 0.5f, row + 0.5f);
-      if (insideDistance(candidate.hull_2d, centre) <= 0.0f) continue;
+      if (!candidate.hull_edges.insideBy(centre, 0.0f)) continue;
       ++inside;
       covered += occupied[static_cast<size_t>(row) * columns + column];
     }
@@ -553,17 +555,16 @@ bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableP
   for (const auto& point : cloud.points) {
     const Eigen::Vector3f p = point.getVector3fMap();
     const float depth = -candidate.plane.signedDistance(p);
+    // The depth band first: most points are not in it, and need no noise depth.
+    if (!(depth > 2 * params.distance_threshold && depth < kBelowSupportDepth)) continue;
     const float noise_depth = kBelowNoiseSigmas * noise_at_one_metre * (p - eye).squaredNorm();
-    if (!(depth > std::max(2 * params.distance_threshold, noise_depth) &&
-          depth < kBelowSupportDepth)) {
-      continue;
-    }
+    if (!(depth > std::max(2 * params.distance_threshold, noise_depth))) continue;
     // Where the line of sight eye -> p crosses the plane.
     const Eigen::Vector3f crossing = eye + (p - eye) * (eye_height / (eye_height + depth));
     const Eigen::Vector2f q(candidate.u.dot(crossing), candidate.v.dot(crossing));
     const Eigen::Vector2f foot(candidate.u.dot(p), candidate.v.dot(p));
-    if (insideDistance(candidate.hull_2d, q) > inset &&
-        (!surface || insideDistance(candidate.hull_2d, foot) > inset) &&
+    if (candidate.hull_edges.insideBy(q, inset) &&
+        (!surface || candidate.hull_edges.insideBy(foot, inset)) &&
         ++below >= kMinSupportedPoints) {
       return true;
     }
@@ -577,7 +578,7 @@ bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams&
   const float height = base.plane.signedDistance(top.centroid);
   if (height < params.min_height || height > params.max_height) return false;
   const Eigen::Vector2f q(base.u.dot(top.centroid), base.v.dot(top.centroid));
-  return insideDistance(base.hull_2d, q) > 0.0f;
+  return base.hull_edges.insideBy(q, 0.0f);
 }
 
 // The support plane among the candidates: the highest one (nearest the camera along its normal,

@@ -64,3 +64,34 @@ TEST(ConvexHull2d, DegenerateInputStaysDegenerate) {
   const std::vector<Eigen::Vector2f> hull = convexHull2d(line);
   EXPECT_LT(hull.size(), 3u);
 }
+
+TEST(PolygonEdges, SameDistancesAsInsideDistanceAndInsideByItsThreshold) {
+  // A hexagon with a repeated vertex (a zero-length edge, skipped by both), probed on a grid
+  // reaching 0.3 m beyond it, and exactly on an edge's line.
+  const std::vector<Eigen::Vector2f> hull = {{0.0f, 0.0f}, {0.4f, -0.1f}, {0.7f, 0.2f},
+                                             {0.7f, 0.2f}, {0.5f, 0.6f},  {0.1f, 0.5f},
+                                             {-0.2f, 0.3f}};
+  const PolygonEdges edges(hull);
+  int inside = 0, probes = 0;
+  for (int i = -30; i <= 100; ++i) {
+    for (int j = -40; j <= 90; ++j) {
+      const Eigen::Vector2f q(0.01f * i, 0.01f * j);
+      const float expected = insideDistance(hull, q);
+      ASSERT_EQ(edges.insideDistance(q), expected) << q.transpose();  // bit for bit
+      for (const float margin : {-0.05f, 0.0f, 0.02f, expected}) {
+        ASSERT_EQ(edges.insideBy(q, margin), expected > margin) << q.transpose() << " " << margin;
+      }
+      inside += expected > 0.0f;
+      ++probes;
+    }
+  }
+  EXPECT_GT(inside, 1000);  // both sides probed
+  EXPECT_GT(probes - inside, 1000);
+  // The midpoint of the first edge: on it (to rounding), not inside by a micrometre.
+  EXPECT_FALSE(edges.insideBy({0.2f, -0.05f}, 1e-6f));
+  EXPECT_NEAR(edges.insideDistance({0.2f, -0.05f}), 0.0f, 1e-7f);
+  // No vertices: nothing is outside, as insideDistance says (float max).
+  const PolygonEdges none(std::vector<Eigen::Vector2f>{});
+  EXPECT_EQ(none.insideDistance({1.0f, 1.0f}), insideDistance({}, {1.0f, 1.0f}));
+  EXPECT_TRUE(none.insideBy({1.0f, 1.0f}, 1e30f));
+}
