@@ -14,10 +14,13 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <random>
+#include <thread>
 
 namespace tabletop_shapes {
 namespace {
@@ -79,6 +82,10 @@ constexpr float kMinImageUpCosine = 0.1f;
 constexpr float kEdgeLinkDistance = 0.01f;
 // GridSearch cell of the outlier removal's k-nearest searches [m].
 constexpr float kOutlierSearchCell = 0.03f;
+
+// refinePlaneOLS; kFinite: the points are known finite (below).
+template <bool kFinite>
+bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& plane);
 
 // How candidate planes are oriented and which normals are acceptable.
 struct NormalConstraint {
@@ -170,6 +177,45 @@ std::pair<size_t, size_t> densestWindow(const std::vector<float>& values, float 
   return {best_begin, best_end};
 }
 
+// RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
+// counted four at a time, with the same float arithmetic per point as Plane::signedDistance
+// ((nx x + ny y) + nz z + d), so the same counts.
+class ScoringPoints {
+ public:
+  ScoringPoints(const Cloud& cloud, const std::vector<int>& indices)
+      : columns_((indices.size() + 3) / 4) {
+    for (size_t k = 0; k < columns_.size() * 4; ++k) {
+      Column& column = columns_[k / 4];
+      // Padding: NaN, never within any distance.
+      const float nan = std::numeric_limits<float>::quiet_NaN();
+      Eigen::Vector3f p = Eigen::Vector3f::Constant(nan);
+      if (k < indices.size()) p = cloud[indices[k]].getVector3fMap();
+      column.x[k % 4] = p.x(), column.y[k % 4] = p.y(), column.z[k % 4] = p.z();
+    }
+  }
+
+  size_t countWithin(const Plane& plane, float threshold) const {
+    const Floats nx = Floats{} + plane.normal.x(), ny = Floats{} + plane.normal.y(),
+                 nz = Floats{} + plane.normal.z(), d = Floats{} + plane.d,
+                 limit = Floats{} + threshold;
+    Ints count = {0, 0, 0, 0};
+    for (const Column& column : columns_) {
+      const Floats distance = nx * column.x + ny * column.y + nz * column.z + d;
+      const Floats magnitude = (Floats)((Ints)distance & 0x7fffffff);  // |distance|
+      count -= magnitude <= limit;                                     // true is -1
+    }
+    return static_cast<size_t>(count[0]) + count[1] + count[2] + count[3];
+  }
+
+ private:
+  using Floats = float __attribute__((vector_size(16)));
+  using Ints = int32_t __attribute__((vector_size(16)));
+  struct Column {
+    Floats x, y, z;
+  };
+  std::vector<Column> columns_;
+};
+
 // RANSAC for the plane with the most inliers among `indices` whose (oriented) normal satisfies
 // the constraint, refined by OLS and re-collected. False when no acceptable plane is found.
 // The refined plane is returned even when it leaves the constraint: its inliers then lie on a
@@ -184,6 +230,7 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     std::shuffle(scoring.begin(), scoring.end(), rng);
     scoring.resize(kMaxScoringPoints);
   }
+  const ScoringPoints scoring_points(cloud, scoring);
   std::uniform_int_distribution<size_t> pick(0, indices.size() - 1);
   const float threshold = params.distance_threshold;
   size_t best_count = 0;
@@ -198,10 +245,7 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     }
     hypothesis = orient(hypothesis, constraint);
     if (!acceptable(hypothesis, constraint)) continue;
-    size_t count = 0;
-    for (int i : scoring) {
-      count += std::abs(hypothesis.signedDistance(cloud[i].getVector3fMap())) <= threshold;
-    }
+    const size_t count = scoring_points.countWithin(hypothesis, threshold);
     if (count > best_count) {
       best_count = count;
       best = hypothesis;
@@ -213,11 +257,14 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
   if (best_count < 3) return false;
   // Two rounds of OLS on the inliers: the second one on the set the refined plane explains.
   plane = best;
+  bool inliers_of_plane = false;  // `inliers` are those of `plane`: no need to collect again
   for (int round = 0; round < 2; ++round) {
     collectInliers(cloud, indices, plane, threshold, inliers);
+    inliers_of_plane = true;
     Plane refined = plane;
-    if (!refinePlaneOLS(cloud, inliers, refined)) break;
+    if (!refinePlane<true>(cloud, inliers, refined)) break;
     plane = orient(refined, constraint);
+    inliers_of_plane = false;
     if (!acceptable(plane, constraint)) {
       collectInliers(cloud, indices, plane, threshold, inliers);
       return true;
@@ -240,12 +287,13 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     std::vector<int> slab;
     collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
     Plane refined = shifted;
-    if (!refinePlaneOLS(cloud, slab, refined)) break;
+    if (!refinePlane<true>(cloud, slab, refined)) break;
     plane = orient(refined, constraint);
     collectInliers(cloud, indices, plane, threshold, inliers);
+    inliers_of_plane = true;
     if (!acceptable(plane, constraint)) return true;
   }
-  collectInliers(cloud, indices, plane, threshold, inliers);
+  if (!inliers_of_plane) collectInliers(cloud, indices, plane, threshold, inliers);
   return true;
 }
 
@@ -423,40 +471,80 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
     remaining.swap(kept);
   }
   std::mt19937 rng(42);  // deterministic: the same frame gives the same table
-  std::vector<Candidate> candidates;
+  // A plane found is judged (its tilt, surface contrast and hull) on a thread of its own while
+  // the next one is searched among the points left: the search needs only its inliers.
+  struct Judged {
+    Candidate candidate;
+    std::string refusal;
+    std::exception_ptr error;
+  };
+  auto judge = [&](Judged& judged) {
+    try {
+      Candidate& candidate = judged.candidate;
+      char refusal[128] = "";
+      if (!acceptable(candidate.plane, constraint)) {
+        const float cosine = std::clamp(candidate.plane.normal.dot(constraint.axis), -1.0f, 1.0f);
+        std::snprintf(refusal, sizeof refusal, "a plane of %zu points tilted %.1f deg from up",
+                      candidate.inliers.size(),
+                      std::acos(cosine) * 180.0f / static_cast<float>(kPi));
+      } else if (const float contrast =
+                     surfaceContrast(cloud, candidate, params.distance_threshold);
+                 contrast < kMinSurfaceContrast) {
+        std::snprintf(refusal, sizeof refusal,
+                      "%zu scattered points, not a surface (%.2fx denser within %.0f mm of the "
+                      "plane than beyond, a surface >= %.1fx)",
+                      candidate.inliers.size(), contrast, kSurfaceSlab * 1000.0f,
+                      kMinSurfaceContrast);
+      }
+      judged.refusal = refusal;
+      if (judged.refusal.empty()) buildHull(cloud, candidate);
+    } catch (...) {
+      judged.error = std::current_exception();
+    }
+  };
+  const bool judge_aside = workerThreads() > 1;
+  std::vector<std::unique_ptr<Judged>> found;  // in the order found
+  std::vector<std::thread> judges;
+  struct JoinAll {  // also when the search throws
+    std::vector<std::thread>& threads;
+    void operator()() {
+      for (std::thread& thread : threads) {
+        if (thread.joinable()) thread.join();
+      }
+    }
+    ~JoinAll() { (*this)(); }
+  } join_judges{judges};
   const size_t min_inliers = static_cast<size_t>(std::max(3, params.min_inliers));
   for (int round = 0; round < params.max_planes && remaining.size() >= min_inliers; ++round) {
-    Candidate candidate;
+    auto judged = std::make_unique<Judged>();
+    Candidate& candidate = judged->candidate;
     if (!ransacPlane(cloud, remaining, params, constraint, rng, candidate.plane,
                      candidate.inliers)) {
       break;
     }
     if (candidate.inliers.size() < min_inliers) break;  // later planes are smaller still
+    if (judge_aside) {
+      judges.emplace_back(judge, std::ref(*judged));
+    } else {
+      judge(*judged);
+    }
     // Remove the inliers (both index lists are sorted).
     std::vector<int> rest;
     rest.reserve(remaining.size() - candidate.inliers.size());
     std::set_difference(remaining.begin(), remaining.end(), candidate.inliers.begin(),
                         candidate.inliers.end(), std::back_inserter(rest));
     remaining.swap(rest);
-    char refusal[128] = "";
-    if (!acceptable(candidate.plane, constraint)) {
-      const float cosine = std::clamp(candidate.plane.normal.dot(constraint.axis), -1.0f, 1.0f);
-      std::snprintf(refusal, sizeof refusal, "a plane of %zu points tilted %.1f deg from up",
-                    candidate.inliers.size(), std::acos(cosine) * 180.0f / static_cast<float>(kPi));
-    } else if (const float contrast = surfaceContrast(cloud, candidate, params.distance_threshold);
-               contrast < kMinSurfaceContrast) {
-      std::snprintf(refusal, sizeof refusal,
-                    "%zu scattered points, not a surface (%.2fx denser within %.0f mm of the "
-                    "plane than beyond, a surface >= %.1fx)",
-                    candidate.inliers.size(), contrast, kSurfaceSlab * 1000.0f,
-                    kMinSurfaceContrast);
-    }
-    if (refusal[0] != '\0') {
-      if (refused) refused->push_back(refusal);
+    found.push_back(std::move(judged));
+  }
+  join_judges();
+  std::vector<Candidate> candidates;
+  for (const auto& judged : found) {
+    if (judged->error) std::rethrow_exception(judged->error);
+    if (!judged->refusal.empty()) {
+      if (refused) refused->push_back(judged->refusal);
       continue;
     }
-    buildHull(cloud, candidate);
-    candidates.push_back(std::move(candidate));
+    candidates.push_back(std::move(judged->candidate));
   }
   return candidates;
 }
@@ -854,7 +942,12 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
   return result;
 }
 
-bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane& plane) {
+namespace {
+
+// refinePlaneOLS; kFinite: the indices are valid and their points finite (RANSAC's points,
+// finite by construction), so neither is tested.
+template <bool kFinite>
+bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& plane) {
   // Eq. 4-8 minimise sum (A x + B y + C z + D)^2 with one coefficient fixed. The paper fixes
   // D = -1, which fails for a plane through the origin (D = 0); we fix instead the normal
   // component the plane leans on most, which is never 0 for that plane. The input plane only
@@ -870,10 +963,13 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
   Pair sum_xy = {0.0, 0.0};
   double sum_z = 0.0;
   size_t count = 0;
+  auto finite = [](const Point& p) {
+    return kFinite || (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+  };
   for (int i : indices) {
-    if (i < 0 || static_cast<size_t>(i) >= points.size()) return false;
+    if (!kFinite && (i < 0 || static_cast<size_t>(i) >= points.size())) return false;
     const Point& p = points[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    if (!finite(p)) continue;
     sum_xy += Pair{p.x, p.y};
     sum_z += p.z;
     ++count;
@@ -885,7 +981,7 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
   Pair xx_xy = {0.0, 0.0}, yy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
   for (int i : indices) {
     const Point& p = points[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    if (!finite(p)) continue;
     const Pair xy = Pair{p.x, p.y} - mean_xy;
     const double x = xy[0], y = xy[1], z = p.z - mean.z();
     xx_xy += Pair{x, x} * xy;
@@ -928,6 +1024,12 @@ bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane&
     return true;
   }
   return false;  // collinear or coincident points
+}
+
+}  // namespace
+
+bool refinePlaneOLS(const Cloud& points, const std::vector<int>& indices, Plane& plane) {
+  return refinePlane<false>(points, indices, plane);
 }
 
 namespace {
