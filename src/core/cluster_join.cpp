@@ -56,9 +56,14 @@ constexpr float kOccluderInFront = 0.02f;  // [m]
 // (2 cm) apart.
 constexpr float kTouching = 0.01f;
 
+// A point farther than this beyond a polygon's bounding box shrunk by an inset is surely less
+// than the inset inside the polygon, whatever the float rounding of the exact distance [m].
+constexpr float kSurelyShallower = 1e-5f;
+
 struct Footprint {
   float top = 0.0f;                   // highest point above the table [m]
   std::vector<Eigen::Vector2f> hull;  // convex hull of the rim on the table, in (u, v)
+  Eigen::AlignedBox2f box;            // the hull's bounding box
 };
 
 // Whether clusters a and b were parted under their own top faces (cluster_split.h).
@@ -125,7 +130,9 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
         if (table.signedDistance(p) >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
       }
     }
-    return Footprint{top, convexHull2d(std::move(rim))};
+    Footprint footprint{top, convexHull2d(std::move(rim)), {}};
+    for (const Eigen::Vector2f& corner : footprint.hull) footprint.box.extend(corner);
+    return footprint;
   };
   std::vector<Footprint> footprints(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) footprints[c] = footprintOf({c});
@@ -138,6 +145,10 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
         !(eye_height > rim.top)) {
       return false;
     }
+    // A point of a convex polygon within the inset of its bounding box's side is within the
+    // inset of its boundary: the box test spares the exact distance to most crossings.
+    const Eigen::Vector2f shrink = Eigen::Vector2f::Constant(kOpeningInset - kSurelyShallower);
+    const Eigen::AlignedBox2f deep_enough(rim.box.min() + shrink, rim.box.max() - shrink);
     size_t through = 0;
     for (const auto& point : *clusters[inside]) {
       const Eigen::Vector3f p = point.getVector3fMap();
@@ -146,7 +157,9 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
       // Where the line of sight viewpoint -> p crosses the rim's height.
       const Eigen::Vector3f crossing =
           viewpoint + (p - viewpoint) * ((eye_height - rim.top) / (eye_height - height));
-      through += insideDistance(rim.hull, {u.dot(crossing), v.dot(crossing)}) >= kOpeningInset;
+      const Eigen::Vector2f on_table(u.dot(crossing), v.dot(crossing));
+      through +=
+          deep_enough.contains(on_table) && insideDistance(rim.hull, on_table) >= kOpeningInset;
     }
     return through >= kMinSeenThroughFraction * clusters[inside]->size();
   };

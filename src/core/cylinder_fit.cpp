@@ -33,6 +33,8 @@ const int kMinSidePoints = 8;
 const double kTrimSigmas = 3.0;
 const double kTrimFloor = 0.0005;  // [m]
 const int kTrimRounds = 3;
+// Levenberg-Marquardt stops at a step this short (relative to 1 + |x|).
+const double kConvergedStep = 1e-9;
 // A circle or cone that keeps fewer of the side-wall points than this after trimming describes
 // a part of the object only (seen: a box's corner, 11 of ~300 points, rmse 1.9 mm, taken for a
 // cylinder r 9.6 cm). A real cylinder keeps ~97 % (noise, a handle, silhouette pixels).
@@ -53,7 +55,9 @@ double rms(const Eigen::VectorXd& residuals) {
 
 // Levenberg-Marquardt on sum r_i(x)^2. `evaluate(x, residuals, jacobian)` fills both
 // (jacobian may be nullptr). Returns the parameters reached; stops after max_iterations or
-// when the step no longer changes x. Shared by the circle and the cone fit.
+// when a step moves x by less than kConvergedStep: parameters are metres (and a slope), and a
+// nanometre is far below any figure reported, while the last steps down to rounding noise each
+// cost a Jacobian and a few rejected trials. Shared by the circle and the cone fit.
 template <typename Evaluate>
 Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, int n_residuals,
                                    int max_iterations) {
@@ -83,7 +87,7 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
       evaluate(trial, trial_residuals, nullptr);
       const double trial_cost = trial_residuals.squaredNorm();
       if (std::isfinite(trial_cost) && trial_cost <= cost) {
-        const bool converged = step.norm() <= 1e-12 * (1.0 + x.norm());
+        const bool converged = step.norm() <= kConvergedStep * (1.0 + x.norm());
         x = trial;
         cost = trial_cost;
         lambda = std::max(lambda * 0.1, 1e-12);
