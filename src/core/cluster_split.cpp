@@ -4,6 +4,7 @@
 #include "tabletop_shapes/core/cluster_split.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/grid_neighbours.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/top_step_split.h"
 #include "tabletop_shapes/core/voxel_key.h"
@@ -458,12 +459,7 @@ template <typename Visit>
 void forNeighboursInRegion(const std::vector<const FootprintCell*>& region,
                            const std::unordered_map<uint64_t, int>& index_of, int i,
                            Visit&& visit) {
-  for (int64_t dx = -1; dx <= 1; ++dx) {
-    for (int64_t dy = -1; dy <= 1; ++dy) {
-      auto it = index_of.find(voxel_key::pack(region[i]->x + dx, region[i]->y + dy, 0));
-      if ((dx || dy) && it != index_of.end()) visit(it->second);
-    }
-  }
+  forGridNeighbours(index_of, region[i]->x, region[i]->y, [&](uint64_t, int j) { visit(j); });
 }
 
 // Each cell's distance to the nearest cell outside its region, in cells.
@@ -682,13 +678,7 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   std::vector<std::vector<const FootprintCell*>> regions;
   std::vector<uint64_t> stack;
   auto forNeighbourCells = [&](const FootprintCell& cell, auto&& visit) {
-    for (int64_t dx = -1; dx <= 1; ++dx) {
-      for (int64_t dy = -1; dy <= 1; ++dy) {
-        const uint64_t key = voxel_key::pack(cell.x + dx, cell.y + dy, 0);
-        auto next = cells.find(key);
-        if ((dx || dy) && next != cells.end()) visit(key, next->second);
-      }
-    }
+    forGridNeighbours(cells, cell.x, cell.y, visit);
   };
   for (auto& [key, seed] : cells) {
     if (seed.region >= 0 || seed.steep()) continue;
@@ -787,13 +777,10 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     if (!cell.steep()) {
       if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
     } else {
-      for (int64_t dx = -1; dx <= 1; ++dx) {
-        for (int64_t dy = -1; dy <= 1; ++dy) {
-          auto next = cells.find(voxel_key::pack(cell.x + dx, cell.y + dy, 0));
-          if (next != cells.end() && next->second.region >= 0)
-            near_faces.push_back(face_of_region[next->second.region]);
-        }
-      }
+      // The cell itself is steep: in no region.
+      forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
+        if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
+      });
       std::sort(near_faces.begin(), near_faces.end());
       near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
     }
