@@ -114,15 +114,22 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   // border behind a flattened bottle was joined to it as its inside).
   auto footprintOf = [&](const std::vector<size_t>& members) {
     float top = -std::numeric_limits<float>::max();
+    std::vector<float> heights;
+    size_t points = 0;
+    for (size_t c : members) points += clusters[c]->size();
+    heights.reserve(points);
     for (size_t c : members) {
-      for (const auto& point : *clusters[c])
-        top = std::max(top, table.signedDistance(point.getVector3fMap()));
+      for (const auto& point : *clusters[c]) {
+        heights.push_back(table.signedDistance(point.getVector3fMap()));
+        top = std::max(top, heights.back());
+      }
     }
     std::vector<Eigen::Vector2f> rim;
+    size_t i = 0;
     for (size_t c : members) {
       for (const auto& point : *clusters[c]) {
         const Eigen::Vector3f p = point.getVector3fMap();
-        if (table.signedDistance(p) >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
+        if (heights[i++] >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
       }
     }
     return Footprint{top, convexHull2d(std::move(rim))};
