@@ -642,13 +642,23 @@ std::vector<std::vector<const FootprintCell*>> topsOf(
 // The cells within `outline` (cell centres) whose highest point lies at the level of a face
 // from `bottom` to `top` (within kTopFaceStep): the face's own cells and the noisy ones of it
 // that depth noise made steep (at 1.1-1.3 m a third of a box top's 1 cm cells spread over more
-// than kTopFaceStep; issue 15).
+// than kTopFaceStep; issue 15). Only the cells of the outline's bounding box are looked up: a
+// block of touching objects holds many faces, each a small part of its cells.
 size_t levelCellsWithin(const std::vector<Eigen::Vector2f>& outline, float bottom, float top,
                         const std::unordered_map<uint64_t, FootprintCell>& cells) {
+  Eigen::Vector2f low = outline.front(), high = outline.front();
+  for (const Eigen::Vector2f& corner : outline)
+    low = low.cwiseMin(corner), high = high.cwiseMax(corner);
   size_t level = 0;
-  for (const auto& [key, cell] : cells) {
-    level += cell.height >= bottom - kTopFaceStep && cell.height <= top + kTopFaceStep &&
-             insideDistance(outline, {cell.x + 0.5f, cell.y + 0.5f}) >= 0.0f;
+  for (int64_t x = voxel_key::floorToInt(low.x()) - 1; x <= voxel_key::floorToInt(high.x()); ++x) {
+    for (int64_t y = voxel_key::floorToInt(low.y()) - 1; y <= voxel_key::floorToInt(high.y());
+         ++y) {
+      const auto it = cells.find(voxel_key::pack(x, y, 0));
+      if (it == cells.end()) continue;
+      const FootprintCell& cell = it->second;
+      level += cell.height >= bottom - kTopFaceStep && cell.height <= top + kTopFaceStep &&
+               insideDistance(outline, {cell.x + 0.5f, cell.y + 0.5f}) >= 0.0f;
+    }
   }
   return level;
 }
