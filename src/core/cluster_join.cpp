@@ -62,6 +62,14 @@ struct Footprint {
 };
 
 // Whether clusters a and b were parted under their own top faces (cluster_split.h).
+// Both lie under a level top face of their own (split from a cluster, possibly two clusters):
+// two objects, not two sides of one hidden in the middle (issue 15: low objects behind a row of
+// taller ones fall into Euclidean clusters of their own, one per gap, and were joined).
+bool bothUnderOwnTops(const std::vector<int>* side_by_side, size_t a, size_t b) {
+  return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
+         (*side_by_side)[a] >= 0 && (*side_by_side)[b] >= 0;
+}
+
 bool keptApart(const std::vector<int>* side_by_side, size_t a, size_t b) {
   return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
          (*side_by_side)[a] >= 0 && (*side_by_side)[a] == (*side_by_side)[b];
@@ -284,7 +292,7 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
       if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b) ||
-          keptApart(side_by_side, a, b))
+          bothUnderOwnTops(side_by_side, a, b))
         continue;
       if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.
