@@ -67,6 +67,14 @@ struct Footprint {
 };
 
 // Whether clusters a and b were parted under their own top faces (cluster_split.h).
+// Both lie under a level top face of their own (split from a cluster, possibly two clusters):
+// two objects, not two sides of one hidden in the middle (issue 15: low objects behind a row of
+// taller ones fall into Euclidean clusters of their own, one per gap, and were joined).
+bool bothUnderOwnTops(const std::vector<int>* side_by_side, size_t a, size_t b) {
+  return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
+         (*side_by_side)[a] >= 0 && (*side_by_side)[b] >= 0;
+}
+
 bool keptApart(const std::vector<int>* side_by_side, size_t a, size_t b) {
   return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
          (*side_by_side)[a] >= 0 && (*side_by_side)[a] == (*side_by_side)[b];
@@ -119,15 +127,22 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   // border behind a flattened bottle was joined to it as its inside).
   auto footprintOf = [&](const std::vector<size_t>& members) {
     float top = -std::numeric_limits<float>::max();
+    std::vector<float> heights;
+    size_t points = 0;
+    for (size_t c : members) points += clusters[c]->size();
+    heights.reserve(points);
     for (size_t c : members) {
-      for (const auto& point : *clusters[c])
-        top = std::max(top, table.signedDistance(point.getVector3fMap()));
+      for (const auto& point : *clusters[c]) {
+        heights.push_back(table.signedDistance(point.getVector3fMap()));
+        top = std::max(top, heights.back());
+      }
     }
     std::vector<Eigen::Vector2f> rim;
+    size_t i = 0;
     for (size_t c : members) {
       for (const auto& point : *clusters[c]) {
         const Eigen::Vector3f p = point.getVector3fMap();
-        if (table.signedDistance(p) >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
+        if (heights[i++] >= top - kBelowRim) rim.emplace_back(u.dot(p), v.dot(p));
       }
     }
     Footprint footprint{top, convexHull2d(std::move(rim)), {}};
@@ -290,7 +305,7 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
       if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b) ||
-          keptApart(side_by_side, a, b))
+          bothUnderOwnTops(side_by_side, a, b))
         continue;
       if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.

@@ -4,6 +4,7 @@
 #include "tabletop_shapes/core/cluster_split.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/grid_neighbours.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/top_step_split.h"
 #include "tabletop_shapes/core/voxel_key.h"
@@ -458,12 +459,7 @@ template <typename Visit>
 void forNeighboursInRegion(const std::vector<const FootprintCell*>& region,
                            const std::unordered_map<uint64_t, int>& index_of, int i,
                            Visit&& visit) {
-  for (int64_t dx = -1; dx <= 1; ++dx) {
-    for (int64_t dy = -1; dy <= 1; ++dy) {
-      auto it = index_of.find(voxel_key::pack(region[i]->x + dx, region[i]->y + dy, 0));
-      if ((dx || dy) && it != index_of.end()) visit(it->second);
-    }
-  }
+  forGridNeighbours(index_of, region[i]->x, region[i]->y, [&](uint64_t, int j) { visit(j); });
 }
 
 // Each cell's distance to the nearest cell outside its region, in cells.
@@ -646,13 +642,23 @@ std::vector<std::vector<const FootprintCell*>> topsOf(
 // The cells within `outline` (cell centres) whose highest point lies at the level of a face
 // from `bottom` to `top` (within kTopFaceStep): the face's own cells and the noisy ones of it
 // that depth noise made steep (at 1.1-1.3 m a third of a box top's 1 cm cells spread over more
-// than kTopFaceStep; issue 15).
+// than kTopFaceStep; issue 15). Only the cells of the outline's bounding box are looked up: a
+// block of touching objects holds many faces, each a small part of its cells.
 size_t levelCellsWithin(const std::vector<Eigen::Vector2f>& outline, float bottom, float top,
                         const std::unordered_map<uint64_t, FootprintCell>& cells) {
+  Eigen::Vector2f low = outline.front(), high = outline.front();
+  for (const Eigen::Vector2f& corner : outline)
+    low = low.cwiseMin(corner), high = high.cwiseMax(corner);
   size_t level = 0;
-  for (const auto& [key, cell] : cells) {
-    level += cell.height >= bottom - kTopFaceStep && cell.height <= top + kTopFaceStep &&
-             insideDistance(outline, {cell.x + 0.5f, cell.y + 0.5f}) >= 0.0f;
+  for (int64_t x = voxel_key::floorToInt(low.x()) - 1; x <= voxel_key::floorToInt(high.x()); ++x) {
+    for (int64_t y = voxel_key::floorToInt(low.y()) - 1; y <= voxel_key::floorToInt(high.y());
+         ++y) {
+      const auto it = cells.find(voxel_key::pack(x, y, 0));
+      if (it == cells.end()) continue;
+      const FootprintCell& cell = it->second;
+      level += cell.height >= bottom - kTopFaceStep && cell.height <= top + kTopFaceStep &&
+               insideDistance(outline, {cell.x + 0.5f, cell.y + 0.5f}) >= 0.0f;
+    }
   }
   return level;
 }
@@ -682,13 +688,7 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   std::vector<std::vector<const FootprintCell*>> regions;
   std::vector<uint64_t> stack;
   auto forNeighbourCells = [&](const FootprintCell& cell, auto&& visit) {
-    for (int64_t dx = -1; dx <= 1; ++dx) {
-      for (int64_t dy = -1; dy <= 1; ++dy) {
-        const uint64_t key = voxel_key::pack(cell.x + dx, cell.y + dy, 0);
-        auto next = cells.find(key);
-        if ((dx || dy) && next != cells.end()) visit(key, next->second);
-      }
-    }
+    forGridNeighbours(cells, cell.x, cell.y, visit);
   };
   for (auto& [key, seed] : cells) {
     if (seed.region >= 0 || seed.steep()) continue;
@@ -787,13 +787,10 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     if (!cell.steep()) {
       if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
     } else {
-      for (int64_t dx = -1; dx <= 1; ++dx) {
-        for (int64_t dy = -1; dy <= 1; ++dy) {
-          auto next = cells.find(voxel_key::pack(cell.x + dx, cell.y + dy, 0));
-          if (next != cells.end() && next->second.region >= 0)
-            near_faces.push_back(face_of_region[next->second.region]);
-        }
-      }
+      // The cell itself is steep: in no region.
+      forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
+        if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
+      });
       std::sort(near_faces.begin(), near_faces.end());
       near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
     }

@@ -62,7 +62,8 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
     int last = -1;
     for (size_t p = 0; p < parts[i].size(); ++p) {
       const int group = p < side_by_side[i].size() ? side_by_side[i][p] : -1;
-      groups.push_back(group < 0 ? -1 : first_group + group);
+      // A cluster left whole is in no group: no part of it is kept apart from another's.
+      groups.push_back(group < 0 || parts[i].size() < 2 ? -1 : first_group + group);
       last = std::max(last, group);
     }
     first_group += last + 1;

@@ -2,6 +2,7 @@
 #include "tabletop_shapes/core/top_step_split.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/grid_neighbours.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
 #include <Eigen/Dense>
@@ -31,16 +32,11 @@ using CellIndex = std::unordered_map<uint64_t, int>;
 
 uint64_t keyOf(int64_t x, int64_t y) { return voxel_key::pack(x, y, 0); }
 
+// Calls visit(j) for the region's cells j among the 8 neighbours of its cell i.
 template <typename Visit>
 void forNeighbours(const std::vector<HeightCell>& region, const CellIndex& index_of, int i,
                    Visit&& visit) {
-  for (int64_t dx = -1; dx <= 1; ++dx) {
-    for (int64_t dy = -1; dy <= 1; ++dy) {
-      if (!dx && !dy) continue;
-      auto it = index_of.find(keyOf(region[i].x + dx, region[i].y + dy));
-      if (it != index_of.end()) visit(it->second);
-    }
-  }
+  forGridNeighbours(index_of, region[i].x, region[i].y, [&](uint64_t, int j) { visit(j); });
 }
 
 // The largest 8-connected piece among the cells `member` marks.

@@ -195,6 +195,10 @@ TEST(ClusterJoin, ObjectHiddenInTheMiddleJoinsItsTwoParts) {
   // Parted by the split under their own top faces (side by side, cluster_split.h): kept apart.
   EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle, {-1, 0, 0}).size(),
             3u);
+  // Each under a top face of its own, split from two different clusters (low objects behind a
+  // row of taller ones, one cluster per gap; issue 15): two objects, kept apart too.
+  EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle, {-1, 0, 1}).size(),
+            3u);
 
   // Without the occluder nothing explains the gap: two objects standing apart.
   EXPECT_EQ(joinedSizes({left, right}, joinPartsHiddenInTheMiddle).size(), 2u);
