@@ -475,6 +475,76 @@ ShapeFit rejectUnexplained(ShapeFit fit, const NormalCloud& normals, const Cloud
   return fit;
 }
 
+// A round fit of a cluster cut by the image border rests on the part of its wall in view. A flat
+// face seen partly is as near a circle of any large radius as a line: the visible arc must bow
+// out of its chord (its sagitta) by this many times the RMS of the wall's residuals. Border boxes
+// were typed round through one face (a lying cylinder r 88 mm through the 102 points of a box
+// seen along the image's bottom border).
+constexpr float kMinSagittaResiduals = 3.0f;
+// Side-wall points lie within this many residual RMS (and at least kMinArcBand) of the wall.
+constexpr float kArcBandResiduals = 3.0f;
+constexpr float kMinArcBand = 0.003f;
+
+// The arc of a round solid's wall that a cluster covers (visibleArc).
+struct VisibleArc {
+  float sagitta = 0.0f;  // how far it bows out of its chord [m]
+  float rms = 0.0f;      // RMS distance of its points to the wall [m]
+};
+
+// The arc of the round solid's wall that `cluster` covers: the circle less its largest gap
+// around the axis between side-wall points (within the band of the wall, short of the rim
+// band at the top or the end facing the camera). Its sagitta is the radius times 1 - cos(half
+// the arc's angle).
+VisibleArc visibleArc(const ShapeFit& round, const Cloud& cluster, float rim_band) {
+  const Eigen::Vector3f axis = round.axis();
+  const Eigen::Vector3f e1 = axis.unitOrthogonal(), e2 = axis.cross(e1);
+  const float band = std::max(kArcBandResiduals * round.rmse, kMinArcBand);
+  std::vector<float> angles;
+  double squared = 0.0;
+  for (const auto& p : cluster.points) {
+    const Eigen::Vector3f offset = p.getVector3fMap() - round.center;
+    const float along = axis.dot(offset);
+    if (!std::isfinite(along) || along > 0.5f * round.height - rim_band) continue;
+    const float fraction = std::clamp(along / round.height + 0.5f, 0.0f, 1.0f);  // 0: bottom
+    const float radius =
+        round.type == ShapeType::Cone
+            ? round.radius_bottom + (round.radius_top - round.radius_bottom) * fraction
+            : round.radius;
+    const float x = e1.dot(offset), y = e2.dot(offset);
+    const float off = std::hypot(x, y) - radius;
+    if (std::abs(off) > band) continue;
+    angles.push_back(std::atan2(y, x));
+    squared += off * off;
+  }
+  VisibleArc arc;
+  if (angles.size() < 2) return arc;
+  std::sort(angles.begin(), angles.end());
+  float gap = angles.front() + 2.0f * static_cast<float>(kPi) - angles.back();
+  for (size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  arc.sagitta = round.radius * (1.0f - std::cos(0.5f * (2.0f * static_cast<float>(kPi) - gap)));
+  arc.rms = static_cast<float>(std::sqrt(squared / static_cast<double>(angles.size())));
+  return arc;
+}
+
+// A round fit (upright or lying) of a cluster cut by the view whose visible arc (visibleArc)
+// bows out of its chord by less than kMinSagittaResiduals times its points' RMS distance to the
+// wall (or the fit's own residual RMS, if larger) is rejected, with the reason. (The fit's RMS
+// alone is that of the points it kept: a lying cylinder r 88 mm through the bottom 102 points
+// of a Kinect border box at 0.51 m kept 98 at 0.33 mm, while the arc's points lay 1.3 mm RMS
+// off its wall, its sagitta 1.8 mm.)
+ShapeFit rejectFlatArc(ShapeFit fit, const Cloud& cluster, float rim_band, const Cuts& cuts) {
+  if (!fit.ok || fit.type == ShapeType::Cube || cuts.directions.empty()) return fit;
+  const VisibleArc arc = visibleArc(fit, cluster, rim_band);
+  const float least = kMinSagittaResiduals * std::max(arc.rms, fit.rmse);
+  if (arc.sagitta < least) {
+    fit.ok = false;
+    fit.reason = "cut by the view, its visible arc bows " + formatMetres(arc.sagitta) +
+                 " m out of its chord, less than " + formatMetres(least) +
+                 " m (3 x its points' RMS off the wall): a flat face seen partly";
+  }
+  return fit;
+}
+
 // Marks a cut solid truncated: its extents along the cut directions are lower bounds.
 void markTruncation(const Cuts& cuts, ShapeFit& fit) {
   for (const Eigen::Vector3f& d : cuts.directions) {
@@ -568,6 +638,7 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
       fit = narrowToPoints(fit, *cluster, smeared, smear, table, params.max_overreach, cuts);
     fit = rejectOverreach(fit, *cluster, table, params.max_overreach, params.cylinder.top_margin,
                           cuts);
+    fit = rejectFlatArc(fit, *cluster, params.cylinder.top_margin, cuts);
     return rejectUnexplained(fit, normals, *cluster, table);
   };
   // A box's hidden ends lie as far outside its silhouette as a thin object's sides
