@@ -439,6 +439,55 @@ int emptyTopCorners(const ShapeFit& box, const Cloud& cluster, const Cuts& cuts)
   return empty;
 }
 
+// A box whose footprint's sides lie within this ratio of each other is square.
+constexpr float kSquareRatio = 1.2f;
+
+// True for a box with a square footprint (kSquareRatio) no taller than it is wide: the box
+// around a short wide can, whose wall points are too few for its own round fit (a can 85 mm
+// across and 33 mm high, seen over its lid: a cylinder through its wall rested on under a tenth
+// of the cluster and was rejected, and the box stayed with 3-4 of its top corners empty).
+bool isSquareAndLow(const ShapeFit& box) {
+  const float width = std::min(box.dimensions.x(), box.dimensions.y());
+  const float length = std::max(box.dimensions.x(), box.dimensions.y());
+  return !box.bounding_box && width > 0.0f && length <= kSquareRatio * width &&
+         box.dimensions.z() <= width;
+}
+
+// The upright cylinder inscribed in `box`: same centre, height and vertical axis, its diameter
+// the footprint's shorter side.
+ShapeFit inscribedCylinder(const ShapeFit& box) {
+  ShapeFit cylinder = box;
+  cylinder.type = ShapeType::Cylinder;
+  cylinder.radius = 0.5f * std::min(box.dimensions.x(), box.dimensions.y());
+  cylinder.height = box.dimensions.z();
+  cylinder.dimensions = Eigen::Vector3f::Zero();
+  cylinder.faces_seen = 0;
+  return cylinder;
+}
+
+// A lid's points lie within its circle: a box top's beyond the circle inscribed in it, along its
+// edges towards the corners left (a real OSD box, learn26, with 3 empty corners). At most this
+// fraction of the points within kTopBand of the top may lie beyond the circle by more than
+// max_overreach.
+constexpr float kMaxOutsideLid = 0.05f;
+constexpr float kTopBand = 0.01f;  // [m]
+
+// True when the points within kTopBand of the box's top lie within the circle inscribed in its
+// footprint (kMaxOutsideLid), `tolerance` beyond it allowed.
+bool topIsALid(const ShapeFit& box, const Cloud& cluster, float tolerance) {
+  const Eigen::Vector3f z = box.orientation * Eigen::Vector3f::UnitZ();
+  const float top = z.dot(box.center) + 0.5f * box.dimensions.z();
+  const float radius = 0.5f * std::min(box.dimensions.x(), box.dimensions.y());
+  int on_top = 0, outside = 0;
+  for (const auto& p : cluster.points) {
+    const Eigen::Vector3f offset = p.getVector3fMap() - box.center;
+    if (!(z.dot(p.getVector3fMap()) >= top - kTopBand)) continue;
+    ++on_top;
+    outside += (offset - z.dot(offset) * z).norm() > radius + tolerance;
+  }
+  return on_top > 0 && outside <= kMaxOutsideLid * static_cast<float>(on_top);
+}
+
 ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table, float tolerance,
                          float rim_band, const Cuts& cuts) {
   if (!fit.ok) return fit;
@@ -702,6 +751,10 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
         visibleSurfaceResidual(round, normals) < kRoundResidualFactor * best_residual &&
         emptyTopCorners(*best, *cluster, cuts) >= kMinEmptyCorners) {
       return round;
+    }
+    if (isSquareAndLow(*best) && emptyTopCorners(*best, *cluster, cuts) >= kMinEmptyCorners &&
+        topIsALid(*best, *cluster, params.max_overreach + smear.side)) {
+      return inscribedCylinder(*best);
     }
   }
   if (best) return *best;
