@@ -114,14 +114,6 @@ bool consistentPlane(const Eigen::Vector3f& normal, const std::vector<Face>& cho
   return true;
 }
 
-// Value below which `fraction` of the values lie (partially sorts `values`).
-float quantile(std::vector<float>& values, float fraction) {
-  const size_t index = std::min(values.size() - 1,
-                                static_cast<size_t>(fraction * static_cast<float>(values.size())));
-  std::nth_element(values.begin(), values.begin() + index, values.end());
-  return values[index];
-}
-
 // How far the hidden end facing `outward` moves in for the edge smear: none where the image
 // border cut the object (a cut direction within ~73 degrees of it).
 float smearAt(const Eigen::Vector3f& outward, const SilhouetteSmear& smear) {
@@ -222,6 +214,13 @@ float rmsDistanceToBox(const ShapeFit& fit, const CloudT& cloud) {
 }
 
 }  // namespace
+
+float quantile(std::vector<float>& values, float fraction) {
+  const size_t index = std::min(values.size() - 1,
+                                static_cast<size_t>(fraction * static_cast<float>(values.size())));
+  std::nth_element(values.begin(), values.begin() + index, values.end());
+  return values[index];
+}
 
 ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams& params,
                  const SilhouetteSmear& smear) {

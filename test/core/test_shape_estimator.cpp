@@ -245,6 +245,43 @@ TEST(ShapeEstimator, BoundingBoxOfABoxIsTheBox) {
   EXPECT_GT((box.orientation * Eigen::Vector3f::UnitZ()).dot(up), 0.9999f);
 }
 
+TEST(ShapeEstimator, CapOnABoxCountsInItsHeight) {
+  // A flattened bottle: a body 85 x 50 x 155 mm with a round cap (r 14 mm, 20 mm high) on its
+  // shoulder. The box fit ends at its top face, the shoulder (the rendered ones came out 156 mm
+  // tall for 175); the cap is part of the object. The body alone keeps its height.
+  const Eigen::Vector3f body(0.085f, 0.05f, 0.155f);
+  const float cap_radius = 0.014f, cap_height = 0.02f;
+  for (unsigned seed : {1u, 2u}) {
+    synthetic::Sampler sampler = synthetic::voxelGridSampler();
+    sampler.seed = seed;
+    CloudPtr plain = synthetic::box(body, {0.0f, 0.0f}, 0.3f, sampler);
+    auto capped = synthetic::withoutFootprint(plain, -cap_radius, cap_radius, -cap_radius,
+                                              cap_radius, body.z());
+    *capped += *synthetic::lifted(
+        synthetic::roundObject(cap_radius, cap_radius, cap_height, {0.0f, 0.0f}, sampler),
+        body.z());
+    const Eigen::Vector3f target(0.0f, 0.0f, body.z() / 2);
+    const CameraView with_cap = inOpticalFrame(capped, sampler.camera, target);
+    const CameraView without = inOpticalFrame(plain, sampler.camera, target);
+    const ShapeFit fit = ShapeEstimator().estimate(with_cap.cloud, with_cap.table);
+    const ShapeFit body_fit = ShapeEstimator().estimate(without.cloud, without.table);
+    printFit("flat bottle with its cap", fit);
+    printFit("its body alone", body_fit);
+    ASSERT_TRUE(fit.ok && body_fit.ok) << fit.reason << "; " << body_fit.reason;
+    ASSERT_EQ(fit.type, ShapeType::Cube);
+    EXPECT_FALSE(fit.bounding_box);
+    EXPECT_NEAR(fit.dimensions.z(), body.z() + cap_height, 0.004f);
+    EXPECT_NEAR(fit.dimensions.x(), body.x(), 0.004f);
+    EXPECT_NEAR(fit.dimensions.y(), body.y(), 0.004f);
+    // Its bottom stays on the table.
+    const float bottom =
+        with_cap.table.normal.dot(fit.center) + with_cap.table.d - 0.5f * fit.dimensions.z();
+    EXPECT_NEAR(bottom, 0.0f, 0.002f);
+    ASSERT_EQ(body_fit.type, ShapeType::Cube);
+    EXPECT_NEAR(body_fit.dimensions.z(), body.z(), 0.002f);
+  }
+}
+
 // A lying cylinder of `radius` and `length`, yawed by `yaw` about up (table frame, camera
 // synthetic::Sampler's), within 3 mm on the radius and 1 cm on the length, its axis level and
 // along the yaw, its bottom on the table.

@@ -33,4 +33,7 @@ float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point);
 // behind them (seen through the box) or beside a box too small is far from them.
 float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point);
 
+// Value below which `fraction` of the (non-empty) `values` lie (partially sorts `values`).
+float quantile(std::vector<float>& values, float fraction);
+
 }  // namespace tabletop_shapes
