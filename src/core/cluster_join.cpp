@@ -298,18 +298,16 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   };
   std::vector<int> parent(clusters.size());
   std::iota(parent.begin(), parent.end(), 0);
-  // Two clusters each under a level top face of its own (split from a cluster, possibly two
-  // clusters) are two objects, not two sides of one hidden in the middle (issue 15: low objects
-  // behind a row of taller ones fall into Euclidean clusters of their own, one per gap, and were
-  // joined); nor are two joined groups holding one each: a small cluster between them, left
-  // whole, chained six parts of a touching block into one (rendered scene 1065472284).
-  std::vector<char> holds_own_top(clusters.size());
-  for (size_t c = 0; c < clusters.size(); ++c) holds_own_top[c] = underOwnTop(side_by_side, c);
+  // A cluster under a level top face of its own (split from a cluster, cluster_split.h) is a
+  // whole object, not one side of an object hidden in the middle (issue 15): low objects behind
+  // a row of taller ones fall into Euclidean clusters of their own, one per gap, and were joined;
+  // a small cluster left whole between parts of a touching block chained six of them into one
+  // (rendered scene 1065472284); the legs of a box lying across two joined a neighbouring pile's
+  // lower box. The halves of an occluded object are clusters left whole (OSD 25-32).
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
-      const int root_a = root(parent, a), root_b = root(parent, b);
-      if (std::abs(top[a] - top[b]) > kSameTop || root_a == root_b ||
-          (holds_own_top[root_a] && holds_own_top[root_b]))
+      if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b) ||
+          underOwnTop(side_by_side, a) || underOwnTop(side_by_side, b))
         continue;
       if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.
@@ -329,10 +327,7 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
         }
         explained = hidden;
       }
-      if (explained) {
-        parent[root_a] = root_b;
-        holds_own_top[root_b] = holds_own_top[root_b] || holds_own_top[root_a];
-      }
+      if (explained) parent[root(parent, a)] = root(parent, b);
     }
   }
   return mergeGroups(clusters, parent, side_by_side);
