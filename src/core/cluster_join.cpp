@@ -66,13 +66,9 @@ struct Footprint {
   Eigen::AlignedBox2f box;            // the hull's bounding box
 };
 
-// Whether clusters a and b were parted under their own top faces (cluster_split.h).
-// Both lie under a level top face of their own (split from a cluster, possibly two clusters):
-// two objects, not two sides of one hidden in the middle (issue 15: low objects behind a row of
-// taller ones fall into Euclidean clusters of their own, one per gap, and were joined).
-bool bothUnderOwnTops(const std::vector<int>* side_by_side, size_t a, size_t b) {
-  return side_by_side && a < side_by_side->size() && b < side_by_side->size() &&
-         (*side_by_side)[a] >= 0 && (*side_by_side)[b] >= 0;
+// Whether cluster c was parted under a level top face of its own (cluster_split.h).
+bool underOwnTop(const std::vector<int>* side_by_side, size_t c) {
+  return side_by_side && c < side_by_side->size() && (*side_by_side)[c] >= 0;
 }
 
 bool keptApart(const std::vector<int>* side_by_side, size_t a, size_t b) {
@@ -302,10 +298,16 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   };
   std::vector<int> parent(clusters.size());
   std::iota(parent.begin(), parent.end(), 0);
+  // A cluster under a level top face of its own (split from a cluster, cluster_split.h) is a
+  // whole object, not one side of an object hidden in the middle (issue 15): low objects behind
+  // a row of taller ones fall into Euclidean clusters of their own, one per gap, and were joined;
+  // a small cluster left whole between parts of a touching block chained six of them into one
+  // (rendered scene 1065472284); the legs of a box lying across two joined a neighbouring pile's
+  // lower box. The halves of an occluded object are clusters left whole (OSD 25-32).
   for (size_t a = 0; a < clusters.size(); ++a) {
     for (size_t b = a + 1; b < clusters.size(); ++b) {
       if (std::abs(top[a] - top[b]) > kSameTop || root(parent, a) == root(parent, b) ||
-          bothUnderOwnTops(side_by_side, a, b))
+          underOwnTop(side_by_side, a) || underOwnTop(side_by_side, b))
         continue;
       if (kBoundSlack * boxes[a].squaredExteriorDistance(boxes[b]) > kMaxGap * kMaxGap) continue;
       // The shortest segment between the two parts.

@@ -328,19 +328,29 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
   };
   for (bool merged = true; merged;) {
     merged = false;
-    std::map<uint32_t, float> top;
+    std::map<uint32_t, float> top, bottom;
     for (size_t i = 0; i < labels.size(); ++i) {
       const float h = table.signedDistance(cluster[i].getVector3fMap());
       auto it = top.find(labels[i]);
-      if (it == top.end())
-        top[labels[i]] = h;
-      else
+      if (it == top.end()) {
+        top[labels[i]] = bottom[labels[i]] = h;
+      } else {
         it->second = std::max(it->second, h);
+        bottom[labels[i]] = std::min(bottom[labels[i]], h);
+      }
     }
+    // The higher of two parts rests on the lower's flat top: its lowest point lies no deeper
+    // than kStackStep under it (a can lying on a box: the contact line under the can is hidden,
+    // so no supervoxel seam joins them). A depth-step terrace of one face has no flat top.
+    auto restsOnTop = [&](uint32_t a, uint32_t b) {
+      const uint32_t higher = top[a] > top[b] ? a : b, lower = higher == a ? b : a;
+      return bottom[higher] >= top[lower] - kStackStep &&
+             hasFlatTop(cluster, labels, lower, top[lower], table, onTable);
+    };
     for (const auto& [part, part_top] : top) {
       for (const auto& [other, n] : neighbourVotes(cluster, tree, labels, part)) {
         const bool same_top = std::abs(top[other] - part_top) <= kStackStep;
-        if ((same_top || seamRank(parts.seams, part, other) == 1) &&
+        if ((same_top || (seamRank(parts.seams, part, other) == 1 && !restsOnTop(part, other))) &&
             !sideBySide(part, part_top, other, top[other])) {
           relabel(parts, part, other);
           merged = true;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 
 namespace tabletop_shapes {
 namespace sim {
@@ -354,6 +355,47 @@ struct LabelledBox {
   }
 };
 
+// An object whose bottom a nearer object hides: below its lowest visible pixel, in at least
+// kHiddenBottomShare of its image columns (the camera upright, the table below), the next
+// valid pixel shows another object at least kNearer closer to the camera and at least
+// kHigherThanItsBottom higher above the table. The object may go on down behind the occluder
+// to the table (OSD learn16: a box behind a taller one, seen 17-25 cm up, stands on the table
+// for all the data tell); a box resting on a lower one shows the lower one's top at its own
+// bottom height, and a box on the table its own bottom edge.
+constexpr float kHiddenBottomShare = 0.5f;
+constexpr float kNearer = 0.01f;                // [m]
+constexpr float kHigherThanItsBottom = 0.015f;  // [m]: depth noise on box tops is < 1 cm
+
+std::set<int> keysWithHiddenBottoms(const pcl::PointCloud<pcl::PointXYZRGBL>& cloud,
+                                    const Plane& table,
+                                    const std::function<int(uint32_t)>& key_of) {
+  std::set<int> hidden_bottoms;
+  if (cloud.height < 2) return hidden_bottoms;
+  auto valid = [&](const pcl::PointXYZRGBL& p) { return p.getVector3fMap().allFinite(); };
+  std::map<int, std::pair<int, int>> columns;  // key -> (columns, columns hidden below)
+  for (uint32_t col = 0; col < cloud.width; ++col) {
+    for (uint32_t row = 0; row + 1 < cloud.height; ++row) {
+      const pcl::PointXYZRGBL& p = cloud.at(col, row);
+      if (p.label < 10 || !valid(p)) continue;
+      uint32_t below = row + 1;
+      while (below < cloud.height && !valid(cloud.at(col, below))) ++below;
+      if (below == cloud.height) continue;
+      const pcl::PointXYZRGBL& q = cloud.at(col, below);
+      const int key = key_of(p.label);
+      if (q.label >= 10 && key_of(q.label) == key) continue;  // not its lowest pixel here
+      auto& [seen, hidden] = columns[key];
+      ++seen;
+      hidden += q.label >= 10 && q.getVector3fMap().norm() < p.getVector3fMap().norm() - kNearer &&
+                table.signedDistance(q.getVector3fMap()) >
+                    table.signedDistance(p.getVector3fMap()) + kHigherThanItsBottom;
+    }
+  }
+  for (const auto& [key, counts] : columns) {
+    if (counts.second >= kHiddenBottomShare * counts.first) hidden_bottoms.insert(key);
+  }
+  return hidden_bottoms;
+}
+
 bool rightType(ExpectedShape expected, const ShapeFit& fit) {
   if (!fit.ok) return false;
   return expected == ExpectedShape::Box ? fit.type == ShapeType::Cube : isRound(fit.type);
@@ -426,6 +468,15 @@ LabelledObjectScore scoreLabelledObjects(const pcl::PointCloud<pcl::PointXYZRGBL
     objects[static_cast<int>(p.label / 10)].add(q);
     parts[static_cast<int>(p.label)].add(q);
   }
+  // An object whose bottom another hides may reach down to the table: its fit's centre lies
+  // lower than its visible points tell.
+  auto reachDownToTheTable = [&](std::map<int, LabelledBox>& boxes,
+                                 const std::function<int(uint32_t)>& key_of) {
+    for (int key : keysWithHiddenBottoms(cloud, table, key_of))
+      boxes[key].low.z() = std::min(boxes[key].low.z(), 0.0f);
+  };
+  reachDownToTheTable(objects, [](uint32_t label) { return static_cast<int>(label / 10); });
+  reachDownToTheTable(parts, [](uint32_t label) { return static_cast<int>(label); });
   std::vector<Eigen::Vector3f> centres;
   for (const ShapeFit& fit : detections) centres.push_back(tableFrame(fit.center));
   score.whole = countObjects(objects, centres, detections, expected, grow);

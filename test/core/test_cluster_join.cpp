@@ -200,6 +200,29 @@ TEST(ClusterJoin, ObjectHiddenInTheMiddleJoinsItsTwoParts) {
   EXPECT_EQ(joinedSizes({occluder, left, right}, joinPartsHiddenInTheMiddle, {-1, 0, 1}).size(),
             3u);
 
+  // A 50 cm box behind two standing boxes seen in three parts, the middle one between them left
+  // whole: one object; with the outer two each under a top face of its own, no part joins (6
+  // parts of a touching block chained through a small cluster between them).
+  const Eigen::Vector3f shift(0.09f, 0.0f, 0.0f);
+  const CloudPtr occluder_left = synthetic::box(high - low, {-0.09f, -0.02f}, 0.0f, s);
+  const CloudPtr occluder_right = synthetic::box(high - low, {0.09f, -0.02f}, 0.0f, s);
+  auto long_left = std::make_shared<Cloud>(), middle = std::make_shared<Cloud>(),
+       long_right = std::make_shared<Cloud>();
+  for (const auto& p : *synthetic::box({0.50f, 0.06f, 0.07f}, {0.0f, 0.10f}, 0.0f, s)) {
+    const Eigen::Vector3f q = p.getVector3fMap();
+    if (hiddenByBox(q, s.camera, low - shift, high - shift) ||
+        hiddenByBox(q, s.camera, low + shift, high + shift))
+      continue;
+    (q.x() < -0.09f ? long_left : q.x() > 0.09f ? long_right : middle)->push_back(p);
+  }
+  ASSERT_GT(middle->size(), 100u);
+  const std::vector<CloudPtr> three_parts = {occluder_left, occluder_right, long_left, middle,
+                                             long_right};
+  EXPECT_EQ(joinedSizes(three_parts, joinPartsHiddenInTheMiddle).size(), 3u);
+  EXPECT_EQ(joinedSizes(three_parts, joinPartsHiddenInTheMiddle, {-1, -1, 0, -1, 1}).size(), 5u);
+  // One part under its own top: the other two still join.
+  EXPECT_EQ(joinedSizes(three_parts, joinPartsHiddenInTheMiddle, {-1, -1, 0, -1, -1}).size(), 4u);
+
   // Without the occluder nothing explains the gap: two objects standing apart.
   EXPECT_EQ(joinedSizes({left, right}, joinPartsHiddenInTheMiddle).size(), 2u);
   // Two boxes of the same height 16 cm apart behind a 3 cm wide post in front of the gap: the

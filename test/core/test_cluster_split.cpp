@@ -510,6 +510,32 @@ TEST(ClusterSplit, BoxOnABoxIsFittedAsTwo) {
   expectBoxes(fitted(stack.scene), {{0.24f, 0.16f, 0.06f}, {0.16f, 0.10f, 0.05f}});
 }
 
+// A can lying on a box: its contact line is hidden under it, so no supervoxel seam joins the
+// can's side to the box top; the can rests on the box's flat top and stays apart (rendered
+// stacked scene 1765722565 lost it to the box).
+TEST(ClusterSplit, CanLyingOnABoxStaysApart) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const CloudPtr lower = synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, s);
+  // The box top within 1 cm of the can and the can's side within 1.2 cm of the box top unseen
+  // (the view from above hides the wedge around the contact line).
+  Cloud scene = *synthetic::withoutFootprint(lower, -0.06f, 0.06f, -0.043f, 0.043f, 0.06f);
+  for (const auto& p :
+       *synthetic::lifted(synthetic::lyingCylinder(0.033f, 0.10f, {0.0f, 0.0f}, 0.0f, s), 0.06f)) {
+    if (p.z > 0.072f) scene.push_back(p);
+  }
+  const std::vector<ShapeFit> fits = fitted(scene);
+  ASSERT_EQ(fits.size(), 2u);  // 1 without the rule: the can and the box as one cube
+  // The box 6 cm tall; the can on it 6.6 cm across (a lying cylinder, or a box around what is
+  // seen of it: 5.6 cm), fitted on the box, not down to the table (12.6 cm).
+  ASSERT_TRUE(fits[0].ok && fits[0].type == ShapeType::Cube);
+  EXPECT_NEAR(fits[0].dimensions.z(), 0.06f, 0.003f);
+  ASSERT_TRUE(fits[1].ok);
+  const float can_height =
+      fits[1].type == ShapeType::Cube ? fits[1].dimensions.z() : 2.0f * fits[1].radius;
+  EXPECT_GT(can_height, 0.05f);
+  EXPECT_LT(can_height, 0.075f);
+}
+
 TEST(ClusterSplit, DisabledOrWithoutTableNothingIsSplit) {
   const CloudPtr lower =
       synthetic::box({0.24f, 0.16f, 0.06f}, {0.0f, 0.0f}, 0.0f, synthetic::voxelGridSampler());

@@ -752,6 +752,66 @@ TEST(EverydayScoring, LyingCanIsALyingCylinderOrItsBox) {
   EXPECT_NEAR(oversizePercent(can, upright, kUp), 100.0 * (0.101 / 0.066 - 1), 0.01);
 }
 
+// A rendered scene labelled as OSD labels its files (table 1, object i 10 * (i + 2)), and a box
+// fit (cube) centred `height` above the table at the object's footprint centre.
+pcl::PointCloud<pcl::PointXYZRGBL> osdLabelled(const RenderedScene& scene) {
+  pcl::PointCloud<pcl::PointXYZRGBL> cloud(scene.cloud->width, scene.cloud->height);
+  for (size_t i = 0; i < scene.cloud->size(); ++i) {
+    cloud[i].getVector3fMap() = (*scene.cloud)[i].getVector3fMap();
+    const int label = scene.labels[i];
+    cloud[i].label = label >= 0 ? 10 * (label + 2) : label == kTableLabel ? 1 : 0;
+  }
+  return cloud;
+}
+ShapeFit boxCentredAt(const RenderedScene& scene, const ObjectSpec& object, float height) {
+  ShapeFit fit = fittedSolid(ShapeType::Cube, 0, 0, 0);
+  const Eigen::Vector3f world(object.position_on_table.x(), object.position_on_table.y(),
+                              scene.spec.table.height + height);
+  fit.center = scene.world_from_camera.inverse() * world;
+  return fit;
+}
+
+// A 25 cm box 10 cm behind a 20 cm one, its lower 17 cm hidden: a fit standing on the table
+// (centre 12.5 cm up, 4.5 cm under its visible points) finds it (OSD learn16). A box resting on a
+// lower one shows the lower one's top below it: a fit reaching down to the table stays junk.
+TEST(LabelledScoring, ObjectWhoseBottomAnotherHidesReachesDownToTheTable) {
+  SceneSpec spec;
+  spec.noise = NoiseModel::noiseless();
+  spec.placement = {0.8f, 30.0f, 0.0f};
+  ObjectSpec front, behind;
+  front.box_size = {0.1f, 0.1f, 0.2f};
+  front.position_on_table = {-0.1f, 0.0f};
+  behind.box_size = {0.1f, 0.1f, 0.25f};
+  behind.position_on_table = {0.1f, 0.0f};
+  spec.objects = {front, behind};
+  RenderedScene scene = renderScene(spec);
+  const auto boxes = [](int) { return ExpectedShape::Box; };
+  LabelledObjectScore score = scoreLabelledObjects(
+      osdLabelled(scene), {boxCentredAt(scene, front, 0.1f), boxCentredAt(scene, behind, 0.125f)},
+      boxes);
+  EXPECT_EQ(score.whole.objects, 2);
+  EXPECT_EQ(score.whole.found, 2);
+  EXPECT_EQ(score.whole.junk, 0);
+  EXPECT_EQ(score.parts.found, 2);
+
+  ObjectSpec lower, upper;
+  lower.box_size = {0.2f, 0.2f, 0.15f};
+  upper.box_size = {0.1f, 0.1f, 0.06f};
+  upper.base_height = 0.15f;
+  upper.position_on_table = {0.03f, 0.0f};
+  spec.objects = {lower, upper};
+  scene = renderScene(spec);
+  const pcl::PointCloud<pcl::PointXYZRGBL> stack = osdLabelled(scene);
+  score = scoreLabelledObjects(
+      stack, {boxCentredAt(scene, lower, 0.075f), boxCentredAt(scene, upper, 0.18f)}, boxes);
+  EXPECT_EQ(score.whole.found, 2);
+  // The upper box fitted down to the table (21 cm tall, centre 10.5 cm up) does not find it.
+  score = scoreLabelledObjects(
+      stack, {boxCentredAt(scene, lower, 0.075f), boxCentredAt(scene, upper, 0.105f)}, boxes);
+  EXPECT_EQ(score.whole.found, 1);
+  EXPECT_EQ(score.whole.pieces + score.whole.junk, 1);
+}
+
 TEST(SceneRenderer, DegenerateInputDoesNotCrash) {
   SceneSpec spec;
   spec.camera.width = 0;

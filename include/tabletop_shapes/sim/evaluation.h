@@ -91,7 +91,8 @@ enum class ExpectedShape { Unknown, Box, Round };
 // in-plane axes from the camera's x axis) grown by `grow` on every side; each detection finds
 // at most one object, each object is found by at most one detection (closest to its labelled
 // centroid first). A detection that finds nothing is a piece when its centre lies in some
-// object's grown box, else junk.
+// object's grown box, else junk. An object whose lowest visible pixels lie just above a nearer
+// object seen higher (its bottom hidden behind it) has its box reach down to the table.
 struct ObjectCounts {
   int objects = 0, found = 0, pieces = 0, junk = 0;
   int typed = 0, type_right = 0;  // found objects whose expected shape is known; of those right
