@@ -14,7 +14,11 @@ Float4 broadcast(float value) { return Float4{} + value; }
 Float4 magnitude(Float4 value) { return (Float4)((Int4)value & 0x7fffffff); }
 // Bit i set where lane i of the comparison result `mask` is true (-1).
 unsigned lanesOf(Int4 mask) {
+#ifdef __SSE__
+  return static_cast<unsigned>(_mm_movemask_ps((__m128)mask));  // the lanes' sign bits
+#else
   return (mask[0] & 1u) | (mask[1] & 2u) | (mask[2] & 4u) | (mask[3] & 8u);
+#endif
 }
 Float4 squareRoot(Float4 value) {
 #ifdef __SSE__
