@@ -3,6 +3,7 @@
 #include "tabletop_shapes/core/cluster_split.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/slab_nearest.h"
 
 #include <pcl/kdtree/kdtree_flann.h>
 
@@ -236,14 +237,16 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
   // points with a nearest-neighbour search in b finds it (the first of a's points at the least
   // distance), without searching for the points of a that cannot come nearer than the best so
   // far: a's points are visited in the order of their distance to b's bounding box, and the
-  // scan stops where that distance exceeds the best. One k-d tree per cluster, built once.
-  // Bounds are taken slightly below the squared distance to a box, so that float rounding never
-  // skips a point that the tree's distance would tie with.
+  // scan stops where that distance exceeds the best. Bounds are taken slightly below the
+  // squared distance to a box, so that float rounding never skips a point that the search's
+  // distance would tie with. Each search looks only within the best so far (SlabNearest, one per
+  // cluster, built once); where two points of b tie for nearest, a k-d tree picks as it did.
   constexpr float kBoundSlack = 0.9999f;
   std::vector<Eigen::AlignedBox3f> boxes(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) {
     for (const auto& p : *clusters[c]) boxes[c].extend(p.getVector3fMap());
   }
+  std::vector<std::unique_ptr<SlabNearest>> slabs(clusters.size());
   std::vector<std::unique_ptr<pcl::KdTreeFLANN<Point>>> trees(clusters.size());
   auto closestPair = [&](size_t a, size_t b, float& squared_distance, Eigen::Vector3f& from,
                          Eigen::Vector3f& to) {
@@ -255,20 +258,27 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
       order.emplace_back(kBoundSlack * bound, static_cast<int>(i));
     }
     std::sort(order.begin(), order.end());
-    if (!trees[b]) {
-      trees[b] = std::make_unique<pcl::KdTreeFLANN<Point>>();
-      trees[b]->setInputCloud(clusters[b]);
-    }
+    if (!slabs[b]) slabs[b] = std::make_unique<SlabNearest>(*clusters[b]);
     float best = std::numeric_limits<float>::max();
     int best_a = -1, best_b = -1;
-    std::vector<int> nearest(1);
-    std::vector<float> squared(1);
     for (const auto& [bound, i] : order) {
       if (bound > best) break;
-      if (trees[b]->nearestKSearch((*clusters[a])[i], 1, nearest, squared) > 0 &&
-          (squared[0] < best || (squared[0] == best && i < best_a))) {
-        best = squared[0], best_a = i, best_b = nearest[0];
+      SlabNearest::Hit hit;
+      if (!slabs[b]->nearest((*clusters[a])[i].getVector3fMap(), best, hit) ||
+          !(hit.squared < best || (hit.squared == best && i < best_a))) {
+        continue;
       }
+      if (hit.tied) {
+        if (!trees[b]) {
+          trees[b] = std::make_unique<pcl::KdTreeFLANN<Point>>();
+          trees[b]->setInputCloud(clusters[b]);
+        }
+        std::vector<int> nearest(1);
+        std::vector<float> squared(1);
+        trees[b]->nearestKSearch((*clusters[a])[i], 1, nearest, squared);
+        hit.index = nearest[0];
+      }
+      best = hit.squared, best_a = i, best_b = hit.index;
     }
     if (best_a < 0) return false;
     squared_distance = best;

@@ -454,23 +454,39 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
-  auto linkIfClose = [&](size_t i, size_t j) {
+  auto close = [&](size_t i, size_t j) {
     const Entry &p = points_[i], &q = points_[j];
     const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
-    if (dx * dx + dy * dy + dz * dz < radius_sq) {
-      const uint32_t a = root(static_cast<uint32_t>(i)), b = root(static_cast<uint32_t>(j));
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
+    return dx * dx + dy * dy + dz * dz < radius_sq;
   };
-  // Each pair of points once: within a cell, then with the cells at a lexicographically
-  // positive offset (half of the neighbouring cells; the other half reach this cell from
-  // their side). The components do not depend on the order the links come in.
+  auto link = [&](size_t i, size_t j) {
+    const uint32_t a = root(static_cast<uint32_t>(i)), b = root(static_cast<uint32_t>(j));
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  };
+  // First the pairs within each cell. A cell whose points are then one set is whole (marked at
+  // its first position); it stays so, as sets only grow.
+  std::vector<char> whole(points_.size(), 0);
+  for (size_t begin = 0; begin < points_.size();) {
+    const size_t end = runAt(begin).end;
+    for (size_t i = begin; i < end; ++i) {
+      for (size_t j = i + 1; j < end; ++j) {
+        if (close(i, j)) link(i, j);
+      }
+    }
+    const uint32_t first = root(static_cast<uint32_t>(begin));
+    bool one_set = true;
+    for (size_t i = begin + 1; i < end && one_set; ++i)
+      one_set = root(static_cast<uint32_t>(i)) == first;
+    whole[begin] = one_set;
+    begin = end;
+  }
+  // Then each pair of neighbouring cells once: the cells at a lexicographically positive offset
+  // (the other half reach this cell from their side). Two whole cells need no pair once they
+  // are one set, and one close pair makes them one. The components do not depend on the order
+  // the links come in, nor on links within a set.
   for (size_t begin = 0; begin < points_.size();) {
     const Run run = runAt(begin);
     const size_t end = run.end;
-    for (size_t i = begin; i < end; ++i) {
-      for (size_t j = i + 1; j < end; ++j) linkIfClose(i, j);
-    }
     for (int x = 0; x <= reach; ++x) {
       for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
         for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
@@ -480,8 +496,18 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
           }
           const Cell* cell = find(keyOf(nx, ny, nz));
           if (!cell) continue;
-          for (uint32_t j = cell->begin; j < cell->end; ++j) {
-            for (size_t i = begin; i < end; ++i) linkIfClose(i, j);
+          const bool both_whole = whole[begin] && whole[cell->begin];
+          if (both_whole && root(static_cast<uint32_t>(begin)) == root(cell->begin)) continue;
+          bool joined = false;
+          for (uint32_t j = cell->begin; j < cell->end && !joined; ++j) {
+            for (size_t i = begin; i < end; ++i) {
+              if (!close(i, j)) continue;
+              link(i, j);
+              if (both_whole) {
+                joined = true;
+                break;
+              }
+            }
           }
         }
       }

@@ -12,6 +12,35 @@
 #include <cmath>
 
 namespace tabletop_shapes {
+
+void centroidAndCovariance(const Cloud& cloud, const pcl::Indices& indices,
+                           Eigen::Vector4d& centroid, Eigen::Matrix3d& covariance) {
+  using Pair = double __attribute__((vector_size(16)));
+  Pair sum_xy = {0.0, 0.0};
+  double sum_z = 0.0;
+  for (const int i : indices) {
+    sum_xy += Pair{cloud[i].x, cloud[i].y};
+    sum_z += cloud[i].z;
+  }
+  centroid = Eigen::Vector4d(sum_xy[0], sum_xy[1], sum_z, 0.0);
+  centroid /= static_cast<double>(indices.size());
+  centroid[3] = 1;
+  const Pair mean_xy = {centroid[0], centroid[1]};
+  // PCL's entries: (1,1) += y y, (1,2) += y z, (2,2) += z z, (0,0) += x x, (0,1) += y x,
+  // (0,2) += z x, with x, y, z the offsets from the centroid.
+  Pair xx_xy = {0.0, 0.0}, xz_yy = {0.0, 0.0}, yz_zz = {0.0, 0.0};
+  for (const int i : indices) {
+    const Pair xy = Pair{cloud[i].x, cloud[i].y} - mean_xy;
+    const double z = cloud[i].z - centroid[2];
+    xx_xy += xy * Pair{xy[0], xy[0]};
+    xz_yy += Pair{z, xy[1]} * Pair{xy[0], xy[1]};
+    yz_zz += Pair{xy[1], z} * Pair{z, z};
+  }
+  covariance << xx_xy[0], xx_xy[1], xz_yy[0],  //
+      xx_xy[1], xz_yy[1], yz_zz[0],            //
+      xz_yy[0], yz_zz[0], yz_zz[1];
+}
+
 namespace {
 
 constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
@@ -86,8 +115,7 @@ void fitLocalSurface(const Cloud& cloud, int index, const pcl::Indices& neighbou
                      double search_radius, int order, pcl::MLSResult& result) {
   Eigen::Matrix3d covariance;
   Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
-  pcl::compute3DCentroid(cloud, neighbours, centroid);
-  pcl::computeCovarianceMatrix(cloud, neighbours, centroid, covariance);
+  centroidAndCovariance(cloud, neighbours, centroid, covariance);
   double eigen_value;
   Eigen::Vector3d eigen_vector;
   pcl::eigen33(covariance, eigen_value, eigen_vector);

@@ -1,6 +1,7 @@
 #include "tabletop_shapes/core/normals.h"
 
 #include <gtest/gtest.h>
+#include <pcl/common/centroid.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/surface/mls.h>
 
@@ -154,6 +155,26 @@ TEST(NormalsMLS, SurfaceAndNormalsAreThoseOfPclMovingLeastSquares) {
       EXPECT_LT((ours[i].getNormalVector3fMap() - normal).norm(), 1e-5f)
           << "point " << i << ", order " << order;
     }
+  }
+}
+
+// The same doubles as PCL's two functions, on neighbourhoods of a noisy tilted plane far from
+// the origin (offsets small against the coordinates: the sums round).
+TEST(NormalsMLS, CentroidAndCovarianceAreBitForBitThoseOfPcl) {
+  const CloudPtr cloud = noisyPlane(Eigen::Vector3f(0.3f, -0.5f, 0.8f).normalized(), 0.002f, 11);
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> pick(0, static_cast<int>(cloud->size()) - 1);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<int> indices(3 + 7 * trial);
+    for (int& i : indices) i = pick(rng);
+    Eigen::Vector4d expected_centroid = Eigen::Vector4d::Zero(), centroid;
+    Eigen::Matrix3d expected_covariance, covariance;
+    pcl::compute3DCentroid(*cloud, indices, expected_centroid);
+    pcl::computeCovarianceMatrix(*cloud, indices, expected_centroid, expected_covariance);
+    centroidAndCovariance(*cloud, indices, centroid, covariance);
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(centroid[k], expected_centroid[k]) << trial;
+    for (int k = 0; k < 9; ++k) EXPECT_EQ(covariance(k), expected_covariance(k)) << trial;
+    EXPECT_GT(covariance(0, 0), 0.0);
   }
 }
 

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <random>
 
 namespace tabletop_shapes {
@@ -52,9 +54,34 @@ TEST(PlaneSupport, SumsNoAnglesBelowTheMinimumCount) {
   EXPECT_NEAR(angle_sum, 5.0 * kPi / 6.0, 1e-5);
 }
 
+// Every float in [0.5, 1): the same bits as std::acos.
+TEST(PlaneSupport, VectorAcosEqualsStdAcosOnEveryFloatFromHalfToOne) {
+  const uint32_t first = 0x3f000000u, end = 0x3f800000u;  // 0.5, 1.0
+  long differing = 0;
+  for (uint32_t bits = first; bits < end; bits += 4) {
+    Float4 x;
+    for (uint32_t lane = 0; lane < 4; ++lane) {
+      const uint32_t lane_bits = bits + lane;
+      std::memcpy(&x[lane], &lane_bits, sizeof(float));
+    }
+    const Float4 angle = acosOfHalfToOne(x);
+    for (int lane = 0; lane < 4; ++lane) {
+      const float expected = std::acos(x[lane]);
+      differing += std::memcmp(&angle[lane], &expected, sizeof(float)) != 0;
+    }
+  }
+  EXPECT_EQ(differing, 0);
+  const Float4 some = acosOfHalfToOne(Float4{0.5f, 0.75f, 0.9f, 0.99999994f});
+  EXPECT_FLOAT_EQ(some[0], static_cast<float>(kPi / 3));
+  EXPECT_NEAR(some[1], 0.722734248, 1e-7);
+  EXPECT_NEAR(some[2], 0.451026812, 1e-7);
+  EXPECT_NEAR(some[3], 3.4526698e-4, 1e-9);
+}
+
 // The same inliers and the same angle sum, to the bit, as the plain loop with Eigen's dot
-// products, on a noisy box corner and tilted planes through it (odd sizes: partial blocks).
-TEST(PlaneSupport, MatchesThePlainLoopBitForBit) {
+// products, on a noisy box corner and tilted planes through it (odd sizes: partial blocks);
+// with a cosine threshold below 0.5 too (angles the vector acos leaves to std::acos).
+void expectPlainLoopResults(float cos_threshold) {
   std::mt19937 rng(7);
   std::normal_distribution<float> noise(0.0f, 0.003f);
   std::uniform_real_distribution<float> coordinate(-0.1f, 0.1f);
@@ -82,17 +109,23 @@ TEST(PlaneSupport, MatchesThePlainLoopBitForBit) {
       const auto& p = cloud[i];
       if (std::abs(normal.dot(p.getVector3fMap()) + d) >= kDistance) continue;
       const float cosine = std::abs(normal.dot(p.getNormalVector3fMap()));
-      if (cosine <= kCosThreshold) continue;
+      if (cosine <= cos_threshold) continue;
       expected_inliers.push_back(i);
       expected_sum += std::acos(std::min(cosine, 1.0f));
     }
     std::vector<int> inliers;
     double angle_sum = 0.0;
-    const int count = support.collect(normal, d, kDistance, kCosThreshold, &inliers, &angle_sum);
+    const int count = support.collect(normal, d, kDistance, cos_threshold, &inliers, &angle_sum);
     EXPECT_EQ(count, static_cast<int>(expected_inliers.size()));
     EXPECT_EQ(inliers, expected_inliers);
     EXPECT_EQ(angle_sum, expected_sum);
   }
+}
+
+TEST(PlaneSupport, MatchesThePlainLoopBitForBit) { expectPlainLoopResults(kCosThreshold); }
+
+TEST(PlaneSupport, MatchesThePlainLoopBitForBitWithWideAngles) {
+  expectPlainLoopResults(std::cos(static_cast<float>(kPi * 0.45)));  // 81 degrees
 }
 
 }  // namespace

@@ -26,6 +26,11 @@ struct VectorBlocks {
   }
 };
 
+// acos of four floats at once, for lanes in [0.5, 1) (the cosines of angles below 60 degrees):
+// glibc's acosf algorithm for that range (fdlibm's, float operations in the same order), so the
+// same floats as std::acos; the test compares every float of the range. Other lanes: undefined.
+Float4 acosOfHalfToOne(Float4 x);
+
 // The box fit's plane inliers among the points `indices` of a cloud with normals.
 class PlaneSupport {
  public:
