@@ -100,6 +100,31 @@ float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vect
   return nearest;
 }
 
+bool segmentMeetsPolygon(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& a,
+                         const Eigen::Vector2f& b) {
+  if (hull.size() < 3) return false;
+  // Cyrus-Beck: clip the segment's parameter range [0, 1] to each edge's inner half-plane.
+  float enter = 0.0f, leave = 1.0f;
+  const Eigen::Vector2f along = b - a;
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - hull[i];
+    const Eigen::Vector2f inward(-edge.y(), edge.x());  // the interior lies left of the edge
+    const float at_a = inward.dot(a - hull[i]), rate = inward.dot(along);
+    if (rate == 0.0f) {
+      if (at_a < 0.0f) return false;  // parallel to the edge, outside it
+      continue;
+    }
+    const float t = -at_a / rate;
+    if (rate > 0.0f) {
+      enter = std::max(enter, t);
+    } else {
+      leave = std::min(leave, t);
+    }
+    if (enter > leave) return false;
+  }
+  return true;
+}
+
 PolygonEdges::PolygonEdges(const std::vector<Eigen::Vector2f>& hull) {
   edges_.reserve(hull.size());
   for (size_t i = 0; i < hull.size(); ++i) {

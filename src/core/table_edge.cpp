@@ -53,11 +53,24 @@ std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
   for (const Point& point : cluster.points) {
     const Eigen::Vector3f p = point.getVector3fMap();
     const float inside = insideHull(p);
-    if (inside < -kOnTheEdge) return "";  // stands beyond the image's border
     const float range = (p - eye).norm();
     const float band = hull_margin + kEdgeNoiseSigmas * depth_noise_at_one_metre * range * range;
-    // Where its line of sight meets the table: the point hides the table there.
     const float height = table.signedDistance(p);
+    if (inside < -kOnTheEdge) {
+      // Outside the hull: the table stage took it standing on the table beyond the image's
+      // border (the hull ends at the border there: the cluster is cut by it, not at the table's
+      // edge) or over the table hidden beyond the hull. The latter stands on the table when it
+      // lies further out than the depth noise carries a wall's points past the hull's edge
+      // (the wall's foot is that edge; hull_margin is for the table's own ragged edge inside).
+      if (!view || footOutOfView(p - height * table.normal, *view)) return "";
+      if (-inside >= band - hull_margin) {
+        ++beyond_the_band;
+      } else if (inside - band > deepest - deepest_band) {
+        deepest = inside, deepest_band = band, deepest_range = range;
+      }
+      continue;
+    }
+    // Where its line of sight meets the table: the point hides the table there.
     const float hidden = height < eye_height
                              ? insideHull(eye + (p - eye) * (eye_height / (eye_height - height)))
                              : -std::numeric_limits<float>::max();

@@ -95,3 +95,18 @@ TEST(PolygonEdges, SameDistancesAsInsideDistanceAndInsideByItsThreshold) {
   EXPECT_EQ(none.insideDistance({1.0f, 1.0f}), insideDistance({}, {1.0f, 1.0f}));
   EXPECT_TRUE(none.insideBy({1.0f, 1.0f}, 1e30f));
 }
+
+TEST(SegmentMeetsPolygon, KnownCrossingsOfASquare) {
+  const std::vector<Eigen::Vector2f> square = {
+      {0.0f, 0.0f}, {1.0f, 0.0f}, {1.0f, 1.0f}, {0.0f, 1.0f}};
+  using V = Eigen::Vector2f;
+  EXPECT_TRUE(segmentMeetsPolygon(square, V(-1.0f, 0.5f), V(2.0f, 0.5f)));    // through it
+  EXPECT_TRUE(segmentMeetsPolygon(square, V(0.5f, -2.0f), V(0.5f, 0.2f)));    // ends inside
+  EXPECT_TRUE(segmentMeetsPolygon(square, V(0.2f, 0.2f), V(0.8f, 0.7f)));     // wholly inside
+  EXPECT_TRUE(segmentMeetsPolygon(square, V(-1.0f, 1.0f), V(1.0f, -1.0f)));   // a corner
+  EXPECT_FALSE(segmentMeetsPolygon(square, V(-1.0f, 0.5f), V(-0.1f, 0.5f)));  // stops short
+  EXPECT_FALSE(segmentMeetsPolygon(square, V(-1.0f, 1.2f), V(2.0f, 1.2f)));   // passes above
+  EXPECT_FALSE(segmentMeetsPolygon(square, V(-1.0f, 0.9f), V(0.2f, 2.0f)));   // cuts no corner
+  EXPECT_FALSE(segmentMeetsPolygon(square, V(1.5f, -1.0f), V(1.5f, 2.0f)));   // parallel, beside
+  EXPECT_FALSE(segmentMeetsPolygon({{0.0f, 0.0f}, {1.0f, 0.0f}}, V(0.5f, -1.0f), V(0.5f, 1.0f)));
+}

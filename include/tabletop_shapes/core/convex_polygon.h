@@ -14,6 +14,10 @@ std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points);
 // Distance of q inside the counter-clockwise convex polygon to its boundary (negative outside).
 float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& q);
 
+// True when the segment a -> b meets the counter-clockwise convex polygon (touching counts).
+bool segmentMeetsPolygon(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& a,
+                         const Eigen::Vector2f& b);
+
 // A convex polygon's edges with their lengths, for many tests against one polygon (the table's
 // hull against every point of a frame): the same values as insideDistance without its square
 // root per edge and test.

@@ -27,12 +27,13 @@ struct RejectedCluster {
 // their lines of sight meet the table: all but a few (under kMinShareBeyondTheBand, the tail
 // of the noise and edge bleeding) within the hull's edge band (hull_margin) widened by the
 // sensor's depth noise at its range (kEdgeNoiseSigmas standard deviations of the table's own
-// noise, which grows with the square of the range), and no point outside the
-// hull (a point outside was kept because it stands on the table beyond the image's border:
-// that cluster is cut by the border, not at the table's edge), and no point that stands on the
-// table beyond the image (`view`, when known: its line of sight meets the table within the hull
-// and its foot is out of view; a box in the image's corner stands where the hull's edge is a
-// chord past it between table points on two borders).
+// noise, which grows with the square of the range), on either side of the hull's edge (the
+// table stage also keeps points beyond the hull over a hidden table: the back rows of a mostly
+// covered table; outside, noise alone bounds a wall's points), and no point that stands on the
+// table beyond the image (`view`, when known: its line of sight meets the table within the hull,
+// or it lies outside the hull, and its foot is out of view; a box in the image's corner stands
+// where the hull's edge is a chord past it between table points on two borders; without `view`
+// every point outside the hull is taken to stand beyond the image's border).
 //
 // `hull` is the table's convex hull on `table` (ordered), `depth_noise_at_one_metre` the
 // table's depth noise scaled to 1 m (TableResult::depth_noise_at_one_metre), `eye` the camera.
