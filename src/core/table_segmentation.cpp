@@ -368,6 +368,37 @@ bool standsBeyondTheImage(const Eigen::Vector3f& p, float height, const Candidat
   return (tangent.array() < span.low.array()).any() || (tangent.array() > span.high.array()).any();
 }
 
+// Appends to `indices` the points of `candidates` (indices into `cloud`) linked to one of `seeds`
+// (indices into `cloud`) by steps of at most kEdgeLinkDistance through candidates.
+void addLinkedPoints(const Cloud& cloud, const std::vector<int>& candidates,
+                     const std::vector<int>& seeds, std::vector<int>& indices) {
+  if (candidates.empty() || seeds.empty()) return;
+  auto candidate_points = std::make_shared<Cloud>();
+  candidate_points->reserve(candidates.size());
+  for (int i : candidates) candidate_points->push_back(cloud[i]);
+  GridSearch<Point> tree(kEdgeLinkDistance, false);
+  tree.setInputCloud(candidate_points);
+  std::vector<bool> linked(candidates.size(), false);
+  std::vector<int> frontier, neighbours;
+  std::vector<float> distances;
+  auto takeNeighbours = [&](const Point& p) {
+    tree.radiusSearch(p, kEdgeLinkDistance, neighbours, distances);
+    for (int j : neighbours) {
+      if (!linked[j]) {
+        linked[j] = true;
+        frontier.push_back(j);
+      }
+    }
+  };
+  for (int i : seeds) takeNeighbours(cloud[i]);
+  while (!frontier.empty()) {
+    const int j = frontier.back();
+    frontier.pop_back();
+    indices.push_back(candidates[j]);
+    takeNeighbours((*candidate_points)[j]);
+  }
+}
+
 // Points of `cloud` in the height band above the candidate and inside its hull: those at least
 // hull_margin inside, and those nearer the hull's edge that belong to something reaching that far
 // in (linked to such points by steps of at most kEdgeLinkDistance through the edge band). The
@@ -383,9 +414,8 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   const float eye_height = candidate.plane.signedDistance(eye);
   ImageSpan span;  // computed at the first point outside the hull that needs it
   bool span_computed = false;
-  auto edge_band = std::make_shared<Cloud>();
   std::vector<int> edge_indices;
-  std::vector<int> reaching_the_band;  // indices into `indices`: near enough to link to the band
+  std::vector<int> reaching_the_band;  // inner points near enough to link to the band
   for (size_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3f p = cloud[i].getVector3fMap();
     if (!p.allFinite()) continue;
@@ -395,44 +425,23 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
     const float inside = candidate.hull_edges.insideDistance(q);
     if (inside >= params.hull_margin) {
       if (inside < params.hull_margin + kEdgeLinkDistance) {
-        reaching_the_band.push_back(static_cast<int>(indices.size()));
+        reaching_the_band.push_back(static_cast<int>(i));
       }
       indices.push_back(static_cast<int>(i));
     } else if (inside >= 0.0f) {
-      edge_band->push_back(cloud[i]);
       edge_indices.push_back(static_cast<int>(i));
     } else if (eye_height > 0.0f) {
       if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
       if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
-        reaching_the_band.push_back(static_cast<int>(indices.size()));
+        reaching_the_band.push_back(static_cast<int>(i));
         indices.push_back(static_cast<int>(i));
       }
     }
   }
-  if (edge_band->empty() || reaching_the_band.empty()) return;
+  if (edge_indices.empty() || reaching_the_band.empty()) return;
 
   // Grow from the inner points into the edge band.
-  GridSearch<Point> tree(kEdgeLinkDistance, false);
-  tree.setInputCloud(edge_band);
-  std::vector<bool> taken(edge_band->size(), false);
-  std::vector<int> frontier, neighbours;
-  std::vector<float> distances;
-  auto takeNeighbours = [&](const Point& p) {
-    tree.radiusSearch(p, kEdgeLinkDistance, neighbours, distances);
-    for (int j : neighbours) {
-      if (!taken[j]) {
-        taken[j] = true;
-        frontier.push_back(j);
-      }
-    }
-  };
-  for (int k : reaching_the_band) takeNeighbours(cloud[indices[k]]);
-  while (!frontier.empty()) {
-    const int j = frontier.back();
-    frontier.pop_back();
-    indices.push_back(edge_indices[j]);
-    takeNeighbours((*edge_band)[j]);
-  }
+  addLinkedPoints(cloud, edge_indices, reaching_the_band, indices);
   std::sort(indices.begin(), indices.end());  // keep the cloud's order
 }
 
@@ -550,35 +559,13 @@ void addPointsOverTheHiddenTable(const Cloud& cloud, const Candidate& table,
       linkable.push_back(i);
     }
   }
-  auto linkable_points = std::make_shared<Cloud>();
-  for (int i : linkable) linkable_points->push_back(cloud[i]);
-  GridSearch<Point> tree(kEdgeLinkDistance, false);
-  tree.setInputCloud(linkable_points);
-  std::vector<bool> linked(linkable.size(), false);
-  std::vector<int> frontier, neighbours;
-  std::vector<float> distances;
-  auto takeNeighbours = [&](const Point& p) {
-    tree.radiusSearch(p, kEdgeLinkDistance, neighbours, distances);
-    for (int j : neighbours) {
-      if (!linked[j]) {
-        linked[j] = true;
-        frontier.push_back(j);
-      }
-    }
-  };
-  const size_t kept = indices.size();
-  for (size_t k = 0; k < kept; ++k) {
-    const Point& point = cloud[indices[k]];
-    if (insideHull(point.getVector3fMap()) < params.hull_margin + kEdgeLinkDistance) {
-      takeNeighbours(point);
+  std::vector<int> seeds;  // the object points at the hull's edge
+  for (int i : indices) {
+    if (insideHull(cloud[i].getVector3fMap()) < params.hull_margin + kEdgeLinkDistance) {
+      seeds.push_back(i);
     }
   }
-  while (!frontier.empty()) {
-    const int j = frontier.back();
-    frontier.pop_back();
-    indices.push_back(linkable[j]);
-    takeNeighbours((*linkable_points)[j]);
-  }
+  addLinkedPoints(cloud, linkable, seeds, indices);
   std::sort(indices.begin(), indices.end());  // keep the cloud's order
 }
 
