@@ -45,6 +45,7 @@ class OpenNI2Camera : public CameraDevice {
   explicit OpenNI2Camera(const OpenNI2Settings& settings) : settings_(settings) {}
   ~OpenNI2Camera() override {
     stopStreams();
+    if (is_recording_ && !any_stream_created_) letPlayerThreadStop();
     device_.close();
   }
 
@@ -150,6 +151,19 @@ class OpenNI2Camera : public CameraDevice {
     int fps = 30;
   };
 
+  // OpenNI2 2.2 cancels the player thread of a recording closed before any stream was created,
+  // and the process then crashed at shutdown unwinding it (4 runs in 5: the driver unloaded
+  // before anyone subscribed). A stream created and destroyed lets the thread end normally.
+  void letPlayerThreadStop() {
+    openni::VideoStream stream;
+    for (openni::SensorType type : {openni::SENSOR_DEPTH, openni::SENSOR_COLOR}) {
+      if (device_.hasSensor(type) && stream.create(device_, type) == openni::STATUS_OK) {
+        stream.destroy();
+        return;
+      }
+    }
+  }
+
   void createStream(Stream& stream, openni::SensorType type, const CameraLog& log) {
     if (!device_.hasSensor(type)) return;
     if (stream.video.create(device_, type) != openni::STATUS_OK) {
@@ -158,6 +172,7 @@ class OpenNI2Camera : public CameraDevice {
       return;
     }
     stream.created = true;
+    any_stream_created_ = true;
     const bool depth = type == openni::SENSOR_DEPTH;
     const char* name = depth ? "depth" : "colour";
     const int mode = depth ? settings_.depth_mode : settings_.color_mode;
@@ -243,6 +258,7 @@ class OpenNI2Camera : public CameraDevice {
   const OpenNI2Settings& settings_;
   openni::Device device_;
   bool is_recording_ = false;
+  bool any_stream_created_ = false;
   bool registered_ = false;
   Stream depth_, color_;
   openni::VideoFrameRef frame_;  // the last frame read: CameraFrame::data points into it
