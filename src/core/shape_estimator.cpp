@@ -5,6 +5,7 @@
 #include "tabletop_shapes/core/normals.h"
 #include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/predictor.h"
+#include "tabletop_shapes/core/round_lid.h"
 
 #include <algorithm>
 #include <cmath>
@@ -808,6 +809,20 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
     if (isSquareAndLow(*best) && emptyTopCorners(*best, *cluster, cuts) >= kMinEmptyCorners &&
         topIsALid(*best, *cluster, params.max_overreach + smear.side)) {
       return inscribedCylinder(*best);
+    }
+  }
+  // A can in a crowd shows its lid, while its neighbours hide most of its wall: too few wall
+  // points for the round fit (or its width wrongly checked against the part its neighbours
+  // left in view), and the box around the lid won (touching clutter: 19 of 41 cans). A round
+  // outline of the box's top makes it the cylinder under that lid (round_lid.h), when that
+  // cylinder explains the points about as well as the box (as the round fit must above).
+  if (best && best->type == ShapeType::Cube && cuts.directions.empty()) {
+    const TopOutline outline =
+        topOutline(*best, *cluster, params.cylinder.min_radius, params.cylinder.max_radius,
+                   params.max_overreach + smear.side);
+    if (isRoundLid(outline)) {
+      const ShapeFit lid = cylinderUnderLid(*best, outline);
+      if (visibleSurfaceResidual(lid, normals) < kRoundResidualFactor * best_residual) return lid;
     }
   }
   // The models were compared at the box's fitted top; a cap raises it after the choice.

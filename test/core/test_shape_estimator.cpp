@@ -382,6 +382,50 @@ TEST(ShapeEstimator, HalfHiddenLyingCanIsALyingCylinder) {
   }
 }
 
+// `cloud` without the points lower than `depth` under the top at `height`: what neighbours of
+// the same height, touching it, leave in view of an object in a crowd.
+CloudPtr onlyTheTop(const CloudPtr& cloud, float height, float depth) {
+  auto top = std::make_shared<Cloud>();
+  for (const auto& p : cloud->points) {
+    if (p.z > height - depth) top->push_back(p);
+  }
+  return top;
+}
+
+TEST(ShapeEstimator, CanInACrowdSeenOnlyAtItsTopIsACylinder) {
+  // A can (r 44 mm, 110 mm) among neighbours that hide all but the top 15 mm of its wall
+  // (rendered touching clutter): too few wall points for the round fit, and the box around its
+  // lid won. Its lid's round outline makes it the cylinder. A box of the same size so seen
+  // stays a box.
+  const float radius = 0.044f, height = 0.11f, seen = 0.015f;
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  const Eigen::Vector3f target(0.0f, 0.0f, height / 2);
+  const CameraView can = inOpticalFrame(
+      onlyTheTop(synthetic::roundObject(radius, radius, height, {0.0f, 0.0f}, sampler), height,
+                 seen),
+      sampler.camera, target);
+  const ShapeFit fit = ShapeEstimator().estimate(can.cloud, can.table);
+  printFit("can seen at its top", fit);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_EQ(fit.type, ShapeType::Cylinder) << fit.reason;
+  EXPECT_NEAR(fit.radius, radius, 0.003f);
+  EXPECT_NEAR(fit.height, height, 0.005f);
+  const Eigen::Vector3f axis_foot =
+      fit.center - (can.table.normal.dot(fit.center) + can.table.d) * can.table.normal;
+  const Eigen::Vector3f true_foot =
+      synthetic::tableToCamera(sampler.camera, target) * Eigen::Vector3f::Zero();
+  EXPECT_LT((axis_foot - true_foot).norm(), 0.003f);
+  for (float yaw : {0.0f, 0.5f}) {
+    const Eigen::Vector3f size(2.0f * radius, 2.0f * radius, height);
+    const CameraView box =
+        inOpticalFrame(onlyTheTop(synthetic::box(size, {0.0f, 0.0f}, yaw, sampler), height, seen),
+                       sampler.camera, target);
+    const ShapeFit box_fit = ShapeEstimator().estimate(box.cloud, box.table);
+    printFit("box seen at its top", box_fit);
+    EXPECT_EQ(box_fit.type, ShapeType::Cube) << "yaw " << yaw;
+  }
+}
+
 TEST(ShapeEstimator, BoxCutByTheImageBorderIsNeverRound) {
   // The tall narrow box (89 x 38 x 175 mm) cut by the image's right border came out as a
   // cylinder 452 mm across on a real frame; the paper's teapot box too, at several yaws and
