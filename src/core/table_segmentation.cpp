@@ -3,6 +3,7 @@
 #include "tabletop_shapes/core/table_segmentation.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/densest_slab.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
 
@@ -146,43 +147,6 @@ void collectInliers(const Cloud& cloud, const std::vector<int>& indices, const P
   }
 }
 
-// Sorts finite floats ascending: the array std::sort gives (equal values cannot be told apart;
-// -0 comes before +0), by an LSD radix sort of 3 x 11 bits on their order-preserving bit
-// patterns, O(n): a table's 50-100k inlier distances are sorted for its surface slab, twice
-// per plane.
-void sortAscending(std::vector<float>& values) {
-  constexpr int kBits = 11, kPasses = 3;
-  constexpr uint32_t kBuckets = 1u << kBits;
-  std::vector<uint32_t> keys(values.size()), buffer(values.size());
-  for (size_t i = 0; i < values.size(); ++i) {
-    uint32_t bits;
-    std::memcpy(&bits, &values[i], sizeof bits);
-    keys[i] = bits & 0x80000000u ? ~bits : bits | 0x80000000u;
-  }
-  for (int pass = 0; pass < kPasses; ++pass) {
-    const int shift = pass * kBits;
-    std::vector<size_t> start(kBuckets + 1, 0);
-    for (const uint32_t key : keys) ++start[((key >> shift) & (kBuckets - 1)) + 1];
-    for (uint32_t b = 0; b < kBuckets; ++b) start[b + 1] += start[b];
-    for (const uint32_t key : keys) buffer[start[(key >> shift) & (kBuckets - 1)]++] = key;
-    keys.swap(buffer);
-  }
-  for (size_t i = 0; i < values.size(); ++i) {
-    const uint32_t bits = keys[i] & 0x80000000u ? keys[i] & 0x7fffffffu : ~keys[i];
-    std::memcpy(&values[i], &bits, sizeof bits);
-  }
-}
-
-// [first, second) of the longest run of the sorted `values` that spans at most `width`.
-std::pair<size_t, size_t> densestWindow(const std::vector<float>& values, float width) {
-  size_t best_begin = 0, best_end = 0;
-  for (size_t begin = 0, end = 0; begin < values.size(); ++begin) {
-    while (end < values.size() && values[end] <= values[begin] + width) ++end;
-    if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
-  }
-  return {best_begin, best_end};
-}
-
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
 // counted four at a time, with the same float arithmetic per point as Plane::signedDistance
 // ((nx x + ny y) + nz z + d), so the same counts.
@@ -285,11 +249,10 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     std::vector<float> distances;
     distances.reserve(inliers.size());
     for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
-    sortAscending(distances);
-    const auto [best_begin, best_end] = densestWindow(distances, kSurfaceSlab);
-    if (best_end - best_begin < 3) break;
+    const DensestSlab slab_of_most = densestSlab(distances, kSurfaceSlab);
+    if (slab_of_most.count < 3) break;
     Plane shifted = plane;
-    shifted.d -= (distances[best_begin] + distances[best_end - 1]) / 2;
+    shifted.d -= (slab_of_most.low + slab_of_most.high) / 2;
     std::vector<int> slab;
     collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
     Plane refined = shifted;
@@ -582,9 +545,7 @@ float surfaceContrast(const Cloud& cloud, const Candidate& candidate, float thre
   for (int i : candidate.inliers) {
     distances.push_back(candidate.plane.signedDistance(cloud[i].getVector3fMap()));
   }
-  sortAscending(distances);
-  const auto [begin, end] = densestWindow(distances, kSurfaceSlab);
-  const float in_slab = static_cast<float>(end - begin);
+  const float in_slab = static_cast<float>(densestSlab(distances, kSurfaceSlab).count);
   const float outside = std::max(1.0f, static_cast<float>(distances.size()) - in_slab);
   return (in_slab / kSurfaceSlab) / (outside / (band - kSurfaceSlab));
 }
