@@ -6,6 +6,7 @@
 #include "tabletop_shapes/core/densest_slab.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
+#include "tabletop_shapes/core/plane_support.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -137,16 +138,6 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
   return true;
 }
 
-void collectInliers(const Cloud& cloud, const std::vector<int>& indices, const Plane& plane,
-                    float threshold, std::vector<int>& inliers) {
-  inliers.clear();
-  for (int i : indices) {
-    if (std::abs(plane.signedDistance(cloud[i].getVector3fMap())) <= threshold) {
-      inliers.push_back(i);
-    }
-  }
-}
-
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
 // counted four at a time, with the same float arithmetic per point as Plane::signedDistance
 // ((nx x + ny y) + nz z + d), so the same counts.
@@ -225,18 +216,19 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     }
   }
   if (best_count < 3) return false;
+  const PointsNearPlane search_points(cloud, indices);
   // Two rounds of OLS on the inliers: the second one on the set the refined plane explains.
   plane = best;
   bool inliers_of_plane = false;  // `inliers` are those of `plane`: no need to collect again
   for (int round = 0; round < 2; ++round) {
-    collectInliers(cloud, indices, plane, threshold, inliers);
+    search_points.collect(plane, threshold, inliers);
     inliers_of_plane = true;
     Plane refined = plane;
     if (!refinePlane<true>(cloud, inliers, refined)) break;
     plane = orient(refined, constraint);
     inliers_of_plane = false;
     if (!acceptable(plane, constraint)) {
-      collectInliers(cloud, indices, plane, threshold, inliers);
+      search_points.collect(plane, threshold, inliers);
       return true;
     }
   }
@@ -254,15 +246,15 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     Plane shifted = plane;
     shifted.d -= (slab_of_most.low + slab_of_most.high) / 2;
     std::vector<int> slab;
-    collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
+    search_points.collect(shifted, kSurfaceSlab / 2, slab);
     Plane refined = shifted;
     if (!refinePlane<true>(cloud, slab, refined)) break;
     plane = orient(refined, constraint);
-    collectInliers(cloud, indices, plane, threshold, inliers);
+    search_points.collect(plane, threshold, inliers);
     inliers_of_plane = true;
     if (!acceptable(plane, constraint)) return true;
   }
-  if (!inliers_of_plane) collectInliers(cloud, indices, plane, threshold, inliers);
+  if (!inliers_of_plane) search_points.collect(plane, threshold, inliers);
   return true;
 }
 
