@@ -21,6 +21,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <thread>
 
@@ -102,6 +103,14 @@ struct NormalConstraint {
   bool orient_to_origin;  // orient normals towards the camera (else along axis)
 };
 
+// How the candidate's nearer half of inliers (where the inlier band does not clip a sensor's
+// noise yet) lies about its plane: the RMS residual, and the RMS of residual / range^2, the depth
+// noise at 1 m for noise growing with the square of the range (structured light, active stereo).
+struct SurfaceNoise {
+  float rms = 0.0f;
+  float at_one_metre = 0.0f;
+};
+
 struct Candidate {
   Plane plane;
   std::vector<int> inliers;
@@ -111,6 +120,9 @@ struct Candidate {
   Eigen::Vector3f u, v;     // in-plane basis of hull_2d
   float area = 0.0f;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  // surfaceNoiseOf's result, once computed: the chosen table's is asked twice (hasPointsBelow,
+  // then the result's depth noise). Only the thread that searched the candidates asks it.
+  mutable std::optional<SurfaceNoise> noise;
 };
 
 Plane orient(Plane plane, const NormalConstraint& constraint) {
@@ -675,14 +687,6 @@ float hullCoverage(const Cloud& cloud, const Candidate& candidate) {
   return inside > 0 ? static_cast<float>(covered) / static_cast<float>(inside) : 1.0f;
 }
 
-// How the candidate's nearer half of inliers (where the inlier band does not clip a sensor's
-// noise yet) lies about its plane: the RMS residual, and the RMS of residual / range^2, the depth
-// noise at 1 m for noise growing with the square of the range (structured light, active stereo).
-struct SurfaceNoise {
-  float rms = 0.0f;
-  float at_one_metre = 0.0f;
-};
-
 SurfaceNoise surfaceNoise(const Cloud& cloud, const Candidate& candidate,
                           const Eigen::Vector3f& eye) {
   SurfaceNoise noise;
@@ -710,6 +714,13 @@ SurfaceNoise surfaceNoise(const Cloud& cloud, const Candidate& candidate,
   return noise;
 }
 
+// surfaceNoise from the cloud's sensor origin, computed once per candidate.
+const SurfaceNoise& surfaceNoiseOf(const Cloud& cloud, const Candidate& candidate) {
+  if (!candidate.noise)
+    candidate.noise = surfaceNoise(cloud, candidate, cloud.sensor_origin_.head<3>());
+  return *candidate.noise;
+}
+
 // A support surface hides what lies just beneath it from the camera: a point below it whose
 // line of sight crosses the candidate well inside its hull would have been occluded by it. A
 // horizontal slice through several objects (a box top plus rings of the other objects' walls
@@ -727,7 +738,7 @@ bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableP
   const Eigen::Vector3f eye = cloud.sensor_origin_.head<3>();
   const float eye_height = candidate.plane.signedDistance(eye);
   if (!(eye_height > 0.0f)) return false;  // seen from below: nothing to hide
-  const SurfaceNoise noise = surfaceNoise(cloud, candidate, eye);
+  const SurfaceNoise& noise = surfaceNoiseOf(cloud, candidate);
   const bool surface = noise.rms < kMaxSurfaceBandFill * params.distance_threshold;
   const float inset = surface ? kBelowSupportInset : kBelowSliceInset;
   const float noise_at_one_metre = surface ? noise.at_one_metre : 0.0f;
@@ -1016,8 +1027,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
 
   result.found = true;
   result.plane = table.plane;
-  result.depth_noise_at_one_metre =
-      surfaceNoise(*cloud, table, cloud->sensor_origin_.head<3>()).at_one_metre;
+  result.depth_noise_at_one_metre = surfaceNoiseOf(*cloud, table).at_one_metre;
   addPointsOverTheHiddenTable(*cloud, table, params_, result.depth_noise_at_one_metre, objects);
   result.inliers = static_cast<int>(table.inliers.size());
   result.hull = table.hull;
