@@ -25,6 +25,10 @@
 #include <random>
 #include <thread>
 
+#ifdef __SSE__
+#include <xmmintrin.h>
+#endif
+
 namespace tabletop_shapes {
 namespace {
 
@@ -1141,33 +1145,60 @@ namespace {
 // sums them in ascending order, bit for bit. The order does not matter when the double sum is
 // exact: every root is a float, a multiple of 2^(e - 23) with 2^e <= the smallest nonzero root;
 // while n * the largest root < 2^(53 + e - 23), every partial sum is a multiple of that
-// quantum below 2^53 of them, hence exact. Neighbours between a few millimetres and centimetres
-// apart are always far within that; other sets are sorted (into `sorted`) and summed in order.
+// quantum below 2^53 of them, hence exact, and so is the sum of all less the smallest root.
+// Neighbours between a few millimetres and centimetres apart are always far within that (then
+// the roots are taken and summed four at a time); other sets are sorted (into `sorted`) and
+// summed in order.
 double sumOfDistancesButTheNearest(const std::vector<float>& squared, std::vector<float>& sorted) {
   if (squared.empty()) return 0.0;
-  float smallest = squared[0], largest = squared[0];
-  size_t nearest = 0;
-  float smallest_nonzero = std::numeric_limits<float>::infinity();
-  for (size_t j = 0; j < squared.size(); ++j) {
+  using Floats = float __attribute__((vector_size(16)));
+  using Doubles = double __attribute__((vector_size(16)));
+  const size_t n = squared.size(), blocks = n / 4;
+  const float infinity = std::numeric_limits<float>::infinity();
+  Floats smallest4 = Floats{} + squared[0], largest4 = smallest4, nonzero4 = Floats{} + infinity;
+  for (size_t b = 0; b < blocks; ++b) {
+    Floats d;
+    std::memcpy(&d, &squared[4 * b], sizeof d);
+    smallest4 = d < smallest4 ? d : smallest4;
+    largest4 = d > largest4 ? d : largest4;
+    nonzero4 = d > 0.0f && d < nonzero4 ? d : nonzero4;
+  }
+  float smallest = squared[0], largest = squared[0], smallest_nonzero = infinity;
+  for (int lane = 0; lane < 4; ++lane) {
+    smallest = std::min(smallest, smallest4[lane]);
+    largest = std::max(largest, largest4[lane]);
+    smallest_nonzero = std::min(smallest_nonzero, nonzero4[lane]);
+  }
+  for (size_t j = 4 * blocks; j < n; ++j) {
     const float d = squared[j];
-    if (d < smallest) smallest = d, nearest = j;
+    smallest = std::min(smallest, d);
     largest = std::max(largest, d);
     if (d > 0.0f) smallest_nonzero = std::min(smallest_nonzero, d);
   }
-  const double n = static_cast<double>(squared.size());
   // Squared distances: n * sqrt(largest) <= 2^29 * sqrt(smallest nonzero), squared.
-  if (!(n * n * largest <= 0x1p58 * smallest_nonzero) && largest > 0.0f) {
+  const double count = static_cast<double>(n);
+  if (!(count * count * largest <= 0x1p58 * smallest_nonzero) && largest > 0.0f) {
     sorted.assign(squared.begin(), squared.end());
     std::sort(sorted.begin(), sorted.end());
     double sum = 0.0;
     for (size_t j = 1; j < sorted.size(); ++j) sum += std::sqrt(sorted[j]);
     return sum;
   }
-  double sum = 0.0;
-  for (size_t j = 0; j < squared.size(); ++j) {
-    if (j != nearest) sum += std::sqrt(squared[j]);
+  Doubles low = {0.0, 0.0}, high = {0.0, 0.0};
+  for (size_t b = 0; b < blocks; ++b) {
+    Floats d;
+    std::memcpy(&d, &squared[4 * b], sizeof d);
+#ifdef __SSE__
+    const Floats root = (Floats)_mm_sqrt_ps((__m128)d);  // correctly rounded, as std::sqrt
+#else
+    const Floats root = {std::sqrt(d[0]), std::sqrt(d[1]), std::sqrt(d[2]), std::sqrt(d[3])};
+#endif
+    low += Doubles{root[0], root[1]};
+    high += Doubles{root[2], root[3]};
   }
-  return sum;
+  double sum = (low[0] + low[1]) + (high[0] + high[1]);
+  for (size_t j = 4 * blocks; j < n; ++j) sum += std::sqrt(squared[j]);
+  return sum - std::sqrt(smallest);
 }
 
 }  // namespace
