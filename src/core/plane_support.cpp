@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
 #ifdef __SSE__
 #include <xmmintrin.h>
@@ -103,6 +105,44 @@ int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance
     }
   }
   return count;
+}
+
+PointsNearPlane::PointsNearPlane(const Cloud& cloud, const std::vector<int>& indices)
+    : indices_(indices) {
+  points_.resize(indices.size(), std::numeric_limits<float>::quiet_NaN());  // never within
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const Point& p = cloud[indices[k]];
+    points_.set(k, p.x, p.y, p.z);
+  }
+  indices_.resize(4 * points_.x.size(), -1);  // the padding's, never collected
+}
+
+void PointsNearPlane::collect(const Plane& plane, float threshold, std::vector<int>& within) const {
+  const Float4 a = broadcast(plane.normal.x()), b = broadcast(plane.normal.y()),
+               c = broadcast(plane.normal.z()), offset = broadcast(plane.d);
+  const Float4 max_distance = broadcast(threshold);
+  // Written into a buffer kept from call to call (no clearing), without a branch per point:
+  // every index of a partly kept block is written, the count advanced past the kept ones.
+  thread_local std::vector<int> kept;
+  if (kept.size() < indices_.size()) kept.resize(indices_.size());
+  int* out = kept.data();
+  const int* index = indices_.data();
+  size_t count = 0;
+  for (size_t k = 0; k < points_.x.size(); ++k, index += 4) {
+    const Float4 distance = (a * points_.x[k] + (b * points_.y[k] + c * points_.z[k])) + offset;
+    const unsigned lanes = lanesOf(magnitude(distance) <= max_distance);
+    if (lanes == 0) continue;
+    if (lanes == 15) {  // runs of whole blocks on a plane's surface
+      std::memcpy(out + count, index, 4 * sizeof(int));
+      count += 4;
+      continue;
+    }
+    for (int lane = 0; lane < 4; ++lane) {
+      out[count] = index[lane];
+      count += (lanes >> lane) & 1u;
+    }
+  }
+  within.assign(out, out + count);
 }
 
 }  // namespace tabletop_shapes

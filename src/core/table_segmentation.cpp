@@ -3,8 +3,10 @@
 #include "tabletop_shapes/core/table_segmentation.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/densest_slab.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
+#include "tabletop_shapes/core/plane_support.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -19,8 +21,13 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <thread>
+
+#ifdef __SSE__
+#include <xmmintrin.h>
+#endif
 
 namespace tabletop_shapes {
 namespace {
@@ -100,6 +107,14 @@ struct NormalConstraint {
   bool orient_to_origin;  // orient normals towards the camera (else along axis)
 };
 
+// How the candidate's nearer half of inliers (where the inlier band does not clip a sensor's
+// noise yet) lies about its plane: the RMS residual, and the RMS of residual / range^2, the depth
+// noise at 1 m for noise growing with the square of the range (structured light, active stereo).
+struct SurfaceNoise {
+  float rms = 0.0f;
+  float at_one_metre = 0.0f;
+};
+
 struct Candidate {
   Plane plane;
   std::vector<int> inliers;
@@ -109,6 +124,9 @@ struct Candidate {
   Eigen::Vector3f u, v;     // in-plane basis of hull_2d
   float area = 0.0f;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  // surfaceNoiseOf's result, once computed: the chosen table's is asked twice (hasPointsBelow,
+  // then the result's depth noise). Only the thread that searched the candidates asks it.
+  mutable std::optional<SurfaceNoise> noise;
 };
 
 Plane orient(Plane plane, const NormalConstraint& constraint) {
@@ -134,53 +152,6 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
   plane.normal = n / norm;
   plane.d = -plane.normal.dot(a);
   return true;
-}
-
-void collectInliers(const Cloud& cloud, const std::vector<int>& indices, const Plane& plane,
-                    float threshold, std::vector<int>& inliers) {
-  inliers.clear();
-  for (int i : indices) {
-    if (std::abs(plane.signedDistance(cloud[i].getVector3fMap())) <= threshold) {
-      inliers.push_back(i);
-    }
-  }
-}
-
-// Sorts finite floats ascending: the array std::sort gives (equal values cannot be told apart;
-// -0 comes before +0), by an LSD radix sort of 3 x 11 bits on their order-preserving bit
-// patterns, O(n): a table's 50-100k inlier distances are sorted for its surface slab, twice
-// per plane.
-void sortAscending(std::vector<float>& values) {
-  constexpr int kBits = 11, kPasses = 3;
-  constexpr uint32_t kBuckets = 1u << kBits;
-  std::vector<uint32_t> keys(values.size()), buffer(values.size());
-  for (size_t i = 0; i < values.size(); ++i) {
-    uint32_t bits;
-    std::memcpy(&bits, &values[i], sizeof bits);
-    keys[i] = bits & 0x80000000u ? ~bits : bits | 0x80000000u;
-  }
-  for (int pass = 0; pass < kPasses; ++pass) {
-    const int shift = pass * kBits;
-    std::vector<size_t> start(kBuckets + 1, 0);
-    for (const uint32_t key : keys) ++start[((key >> shift) & (kBuckets - 1)) + 1];
-    for (uint32_t b = 0; b < kBuckets; ++b) start[b + 1] += start[b];
-    for (const uint32_t key : keys) buffer[start[(key >> shift) & (kBuckets - 1)]++] = key;
-    keys.swap(buffer);
-  }
-  for (size_t i = 0; i < values.size(); ++i) {
-    const uint32_t bits = keys[i] & 0x80000000u ? keys[i] & 0x7fffffffu : ~keys[i];
-    std::memcpy(&values[i], &bits, sizeof bits);
-  }
-}
-
-// [first, second) of the longest run of the sorted `values` that spans at most `width`.
-std::pair<size_t, size_t> densestWindow(const std::vector<float>& values, float width) {
-  size_t best_begin = 0, best_end = 0;
-  for (size_t begin = 0, end = 0; begin < values.size(); ++begin) {
-    while (end < values.size() && values[end] <= values[begin] + width) ++end;
-    if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
-  }
-  return {best_begin, best_end};
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -261,18 +232,19 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     }
   }
   if (best_count < 3) return false;
+  const PointsNearPlane search_points(cloud, indices);
   // Two rounds of OLS on the inliers: the second one on the set the refined plane explains.
   plane = best;
   bool inliers_of_plane = false;  // `inliers` are those of `plane`: no need to collect again
   for (int round = 0; round < 2; ++round) {
-    collectInliers(cloud, indices, plane, threshold, inliers);
+    search_points.collect(plane, threshold, inliers);
     inliers_of_plane = true;
     Plane refined = plane;
     if (!refinePlane<true>(cloud, inliers, refined)) break;
     plane = orient(refined, constraint);
     inliers_of_plane = false;
     if (!acceptable(plane, constraint)) {
-      collectInliers(cloud, indices, plane, threshold, inliers);
+      search_points.collect(plane, threshold, inliers);
       return true;
     }
   }
@@ -285,21 +257,20 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
     std::vector<float> distances;
     distances.reserve(inliers.size());
     for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
-    sortAscending(distances);
-    const auto [best_begin, best_end] = densestWindow(distances, kSurfaceSlab);
-    if (best_end - best_begin < 3) break;
+    const DensestSlab slab_of_most = densestSlab(distances, kSurfaceSlab);
+    if (slab_of_most.count < 3) break;
     Plane shifted = plane;
-    shifted.d -= (distances[best_begin] + distances[best_end - 1]) / 2;
+    shifted.d -= (slab_of_most.low + slab_of_most.high) / 2;
     std::vector<int> slab;
-    collectInliers(cloud, indices, shifted, kSurfaceSlab / 2, slab);
+    search_points.collect(shifted, kSurfaceSlab / 2, slab);
     Plane refined = shifted;
     if (!refinePlane<true>(cloud, slab, refined)) break;
     plane = orient(refined, constraint);
-    collectInliers(cloud, indices, plane, threshold, inliers);
+    search_points.collect(plane, threshold, inliers);
     inliers_of_plane = true;
     if (!acceptable(plane, constraint)) return true;
   }
-  if (!inliers_of_plane) collectInliers(cloud, indices, plane, threshold, inliers);
+  if (!inliers_of_plane) search_points.collect(plane, threshold, inliers);
   return true;
 }
 
@@ -582,9 +553,7 @@ float surfaceContrast(const Cloud& cloud, const Candidate& candidate, float thre
   for (int i : candidate.inliers) {
     distances.push_back(candidate.plane.signedDistance(cloud[i].getVector3fMap()));
   }
-  sortAscending(distances);
-  const auto [begin, end] = densestWindow(distances, kSurfaceSlab);
-  const float in_slab = static_cast<float>(end - begin);
+  const float in_slab = static_cast<float>(densestSlab(distances, kSurfaceSlab).count);
   const float outside = std::max(1.0f, static_cast<float>(distances.size()) - in_slab);
   return (in_slab / kSurfaceSlab) / (outside / (band - kSurfaceSlab));
 }
@@ -722,14 +691,6 @@ float hullCoverage(const Cloud& cloud, const Candidate& candidate) {
   return inside > 0 ? static_cast<float>(covered) / static_cast<float>(inside) : 1.0f;
 }
 
-// How the candidate's nearer half of inliers (where the inlier band does not clip a sensor's
-// noise yet) lies about its plane: the RMS residual, and the RMS of residual / range^2, the depth
-// noise at 1 m for noise growing with the square of the range (structured light, active stereo).
-struct SurfaceNoise {
-  float rms = 0.0f;
-  float at_one_metre = 0.0f;
-};
-
 SurfaceNoise surfaceNoise(const Cloud& cloud, const Candidate& candidate,
                           const Eigen::Vector3f& eye) {
   SurfaceNoise noise;
@@ -757,6 +718,13 @@ SurfaceNoise surfaceNoise(const Cloud& cloud, const Candidate& candidate,
   return noise;
 }
 
+// surfaceNoise from the cloud's sensor origin, computed once per candidate.
+const SurfaceNoise& surfaceNoiseOf(const Cloud& cloud, const Candidate& candidate) {
+  if (!candidate.noise)
+    candidate.noise = surfaceNoise(cloud, candidate, cloud.sensor_origin_.head<3>());
+  return *candidate.noise;
+}
+
 // A support surface hides what lies just beneath it from the camera: a point below it whose
 // line of sight crosses the candidate well inside its hull would have been occluded by it. A
 // horizontal slice through several objects (a box top plus rings of the other objects' walls
@@ -774,7 +742,7 @@ bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableP
   const Eigen::Vector3f eye = cloud.sensor_origin_.head<3>();
   const float eye_height = candidate.plane.signedDistance(eye);
   if (!(eye_height > 0.0f)) return false;  // seen from below: nothing to hide
-  const SurfaceNoise noise = surfaceNoise(cloud, candidate, eye);
+  const SurfaceNoise& noise = surfaceNoiseOf(cloud, candidate);
   const bool surface = noise.rms < kMaxSurfaceBandFill * params.distance_threshold;
   const float inset = surface ? kBelowSupportInset : kBelowSliceInset;
   const float noise_at_one_metre = surface ? noise.at_one_metre : 0.0f;
@@ -1063,8 +1031,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
 
   result.found = true;
   result.plane = table.plane;
-  result.depth_noise_at_one_metre =
-      surfaceNoise(*cloud, table, cloud->sensor_origin_.head<3>()).at_one_metre;
+  result.depth_noise_at_one_metre = surfaceNoiseOf(*cloud, table).at_one_metre;
   addPointsOverTheHiddenTable(*cloud, table, params_, result.depth_noise_at_one_metre, objects);
   result.inliers = static_cast<int>(table.inliers.size());
   result.hull = table.hull;
@@ -1178,33 +1145,60 @@ namespace {
 // sums them in ascending order, bit for bit. The order does not matter when the double sum is
 // exact: every root is a float, a multiple of 2^(e - 23) with 2^e <= the smallest nonzero root;
 // while n * the largest root < 2^(53 + e - 23), every partial sum is a multiple of that
-// quantum below 2^53 of them, hence exact. Neighbours between a few millimetres and centimetres
-// apart are always far within that; other sets are sorted (into `sorted`) and summed in order.
+// quantum below 2^53 of them, hence exact, and so is the sum of all less the smallest root.
+// Neighbours between a few millimetres and centimetres apart are always far within that (then
+// the roots are taken and summed four at a time); other sets are sorted (into `sorted`) and
+// summed in order.
 double sumOfDistancesButTheNearest(const std::vector<float>& squared, std::vector<float>& sorted) {
   if (squared.empty()) return 0.0;
-  float smallest = squared[0], largest = squared[0];
-  size_t nearest = 0;
-  float smallest_nonzero = std::numeric_limits<float>::infinity();
-  for (size_t j = 0; j < squared.size(); ++j) {
+  using Floats = float __attribute__((vector_size(16)));
+  using Doubles = double __attribute__((vector_size(16)));
+  const size_t n = squared.size(), blocks = n / 4;
+  const float infinity = std::numeric_limits<float>::infinity();
+  Floats smallest4 = Floats{} + squared[0], largest4 = smallest4, nonzero4 = Floats{} + infinity;
+  for (size_t b = 0; b < blocks; ++b) {
+    Floats d;
+    std::memcpy(&d, &squared[4 * b], sizeof d);
+    smallest4 = d < smallest4 ? d : smallest4;
+    largest4 = d > largest4 ? d : largest4;
+    nonzero4 = d > 0.0f && d < nonzero4 ? d : nonzero4;
+  }
+  float smallest = squared[0], largest = squared[0], smallest_nonzero = infinity;
+  for (int lane = 0; lane < 4; ++lane) {
+    smallest = std::min(smallest, smallest4[lane]);
+    largest = std::max(largest, largest4[lane]);
+    smallest_nonzero = std::min(smallest_nonzero, nonzero4[lane]);
+  }
+  for (size_t j = 4 * blocks; j < n; ++j) {
     const float d = squared[j];
-    if (d < smallest) smallest = d, nearest = j;
+    smallest = std::min(smallest, d);
     largest = std::max(largest, d);
     if (d > 0.0f) smallest_nonzero = std::min(smallest_nonzero, d);
   }
-  const double n = static_cast<double>(squared.size());
   // Squared distances: n * sqrt(largest) <= 2^29 * sqrt(smallest nonzero), squared.
-  if (!(n * n * largest <= 0x1p58 * smallest_nonzero) && largest > 0.0f) {
+  const double count = static_cast<double>(n);
+  if (!(count * count * largest <= 0x1p58 * smallest_nonzero) && largest > 0.0f) {
     sorted.assign(squared.begin(), squared.end());
     std::sort(sorted.begin(), sorted.end());
     double sum = 0.0;
     for (size_t j = 1; j < sorted.size(); ++j) sum += std::sqrt(sorted[j]);
     return sum;
   }
-  double sum = 0.0;
-  for (size_t j = 0; j < squared.size(); ++j) {
-    if (j != nearest) sum += std::sqrt(squared[j]);
+  Doubles low = {0.0, 0.0}, high = {0.0, 0.0};
+  for (size_t b = 0; b < blocks; ++b) {
+    Floats d;
+    std::memcpy(&d, &squared[4 * b], sizeof d);
+#ifdef __SSE__
+    const Floats root = (Floats)_mm_sqrt_ps((__m128)d);  // correctly rounded, as std::sqrt
+#else
+    const Floats root = {std::sqrt(d[0]), std::sqrt(d[1]), std::sqrt(d[2]), std::sqrt(d[3])};
+#endif
+    low += Doubles{root[0], root[1]};
+    high += Doubles{root[2], root[3]};
   }
-  return sum;
+  double sum = (low[0] + low[1]) + (high[0] + high[1]);
+  for (size_t j = 4 * blocks; j < n; ++j) sum += std::sqrt(squared[j]);
+  return sum - std::sqrt(smallest);
 }
 
 }  // namespace

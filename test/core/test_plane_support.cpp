@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <random>
 
 namespace tabletop_shapes {
@@ -126,6 +128,54 @@ TEST(PlaneSupport, MatchesThePlainLoopBitForBit) { expectPlainLoopResults(kCosTh
 
 TEST(PlaneSupport, MatchesThePlainLoopBitForBitWithWideAngles) {
   expectPlainLoopResults(std::cos(static_cast<float>(kPi * 0.45)));  // 81 degrees
+}
+
+TEST(PointsNearPlane, KeepsThePointsWithinTheDistanceInTheOrderGiven) {
+  Cloud cloud;
+  for (int i = 0; i < 7; ++i) cloud.push_back(Point(0.1f * i, 0.0f, 0.5f + 0.003f * i));
+  cloud.push_back(Point(0.0f, 0.0f, std::numeric_limits<float>::quiet_NaN()));
+  const PointsNearPlane points(cloud, {7, 6, 0, 2, 1, 4});
+  Plane plane;
+  plane.normal = kUp;
+  plane.d = -0.5f;  // z = 0.5: point i lies 3 i mm above it
+  std::vector<int> within = {99};
+  points.collect(plane, kDistance, within);
+  EXPECT_EQ(within, (std::vector<int>{0, 2, 1}));
+  plane.d = -0.512f;  // z = 12 mm higher
+  points.collect(plane, 0.0035f, within);
+  EXPECT_EQ(within, (std::vector<int>{4}));
+}
+
+// Plane::signedDistance is Eigen's dot (x0 y0 + (x1 y1 + x2 y2)) + d: points on the edge of the
+// band fall on the side that order of float operations puts them, in both.
+TEST(PointsNearPlane, MatchesThePlainLoopBitForBit) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  Cloud cloud;
+  for (int i = 0; i < 5003; ++i) {
+    cloud.push_back(Point(coordinate(rng), coordinate(rng), 1.0f + coordinate(rng)));
+  }
+  std::vector<int> indices;
+  for (int i = 0; i < 5003; i += 1 + i % 3) indices.push_back(i);
+  const PointsNearPlane points(cloud, indices);
+  for (int trial = 0; trial < 50; ++trial) {
+    Plane plane;
+    plane.normal = Eigen::Vector3f(coordinate(rng), coordinate(rng), coordinate(rng)).normalized();
+    plane.d = coordinate(rng);
+    const float threshold = trial % 2 ? 0.015f : 0.004f;
+    std::vector<int> expected, within;
+    for (const int i : indices) {
+      if (std::abs(plane.signedDistance(cloud[i].getVector3fMap())) <= threshold) {
+        expected.push_back(i);
+      }
+    }
+    points.collect(plane, threshold, within);
+    EXPECT_EQ(within, expected);
+    // Thresholds on a point's own distance: the edge case of <=.
+    const float edge = std::abs(plane.signedDistance(cloud[indices[trial]].getVector3fMap()));
+    points.collect(plane, edge, within);
+    EXPECT_NE(std::find(within.begin(), within.end(), indices[trial]), within.end());
+  }
 }
 
 }  // namespace

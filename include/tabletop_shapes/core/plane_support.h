@@ -54,4 +54,18 @@ class PlaneSupport {
   std::vector<Float4> cosine_;
 };
 
+// The inliers of planes among the points `indices` of a cloud (the table stage refines each
+// plane it finds 4-6 times over the same 50-100k points): |normal . p + d| <= threshold, four
+// points at a time, each lane with the float operations of Plane::signedDistance, so the points
+// the plain loop finds, in the order given.
+class PointsNearPlane {
+ public:
+  PointsNearPlane(const Cloud& cloud, const std::vector<int>& indices);
+  void collect(const Plane& plane, float threshold, std::vector<int>& within) const;
+
+ private:
+  std::vector<int> indices_;
+  VectorBlocks points_;
+};
+
 }  // namespace tabletop_shapes

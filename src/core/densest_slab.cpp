@@ -1,0 +1,119 @@
+#include "tabletop_shapes/core/densest_slab.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+namespace tabletop_shapes {
+namespace {
+
+constexpr float kBinsPerWidth = 256.0f;
+
+// The float's bits as an unsigned integer ordered as the values, -0 before +0: the order of
+// the sorted values the result is defined on.
+uint32_t orderKey(float value) {
+  uint32_t bits;
+  std::memcpy(&bits, &value, sizeof bits);
+  return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
+}
+bool keyLess(float a, float b) { return orderKey(a) < orderKey(b); }
+
+// The definition itself: for values that are not all finite, or too spread for the bins.
+DensestSlab bySorting(std::vector<float> sorted, float width) {
+  std::sort(sorted.begin(), sorted.end(), keyLess);
+  size_t best_begin = 0, best_end = 0;
+  for (size_t begin = 0, end = 0; begin < sorted.size(); ++begin) {
+    while (end < sorted.size() && sorted[end] <= sorted[begin] + width) ++end;
+    if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
+  }
+  if (best_end == 0) return {};
+  return {best_end - best_begin, sorted[best_begin], sorted[best_end - 1]};
+}
+
+}  // namespace
+
+DensestSlab densestSlab(const std::vector<float>& values, float width) {
+  if (values.empty()) return {};
+  const size_t n = values.size();
+  float lo = values[0], hi = values[0];
+  bool finite = true;
+  for (const float v : values) {
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+    finite = finite && std::isfinite(v);
+  }
+  const float inv_bin = kBinsPerWidth / width;
+  if (!finite || !(width > 0.0f) || !std::isfinite(inv_bin) ||
+      !((hi - lo) * inv_bin < static_cast<float>(n) + 4096.0f)) {
+    return bySorting(values, width);
+  }
+  // Bins in the values' order: a <= b gives binOf(a) <= binOf(b) (rounding is monotone), so a
+  // value in a lower bin than x is < x and one in a higher bin > x, whatever the rounding.
+  auto binOf = [&](float v) { return static_cast<size_t>((v - lo) * inv_bin); };
+  const size_t bins = binOf(hi) + 1;
+  std::vector<uint32_t> start(bins + 1, 0);  // start[b]: the values in the bins below b
+  std::vector<float> bin_min(bins, hi), bin_max(bins, lo);
+  for (const float v : values) {
+    const size_t b = binOf(v);
+    ++start[b + 1];
+    bin_min[b] = std::min(bin_min[b], v);
+    bin_max[b] = std::max(bin_max[b], v);
+  }
+  for (size_t b = 0; b < bins; ++b) start[b + 1] += start[b];
+  // The values grouped by bin: the sorted order once each bin is sorted (done when needed).
+  std::vector<float> grouped(n);
+  {
+    std::vector<uint32_t> next(start.begin(), start.end() - 1);
+    for (const float v : values) grouped[next[binOf(v)]++] = v;
+  }
+  std::vector<char> bin_sorted(bins, 0);
+  auto sortBin = [&](size_t b) {
+    if (bin_sorted[b]) return;
+    std::sort(grouped.begin() + start[b], grouped.begin() + start[b + 1], keyLess);
+    bin_sorted[b] = 1;
+  };
+  // The values a run starting at a value of bin b can hold at least (from the bin's smallest
+  // value on, with x = that value + width) and at most (x = the bin's largest value + width):
+  // every value in the bins below that of the run's end value x is <= x.
+  auto valuesFromBinTo = [&](size_t b, float x) -> size_t {
+    return x >= hi ? n - start[b] : start[binOf(x)] - start[b];
+  };
+  auto valuesFromBinThrough = [&](size_t b, float x) -> size_t {
+    return x >= hi ? n - start[b] : start[binOf(x) + 1] - start[b];
+  };
+  size_t surely = 0;  // the longest run some bin surely starts
+  for (size_t b = 0; b < bins; ++b) {
+    if (start[b + 1] == start[b]) continue;
+    surely = std::max(surely, valuesFromBinTo(b, bin_min[b] + width));
+  }
+  // Only bins that can start a run that long can hold the longest run's first value: their
+  // begins in ascending order, each run's end found as in the sorted array (it only grows).
+  size_t best_begin = 0, best_end = 0;
+  for (size_t b = 0; b < bins; ++b) {
+    if (start[b + 1] == start[b] || valuesFromBinThrough(b, bin_max[b] + width) < surely) continue;
+    sortBin(b);
+    size_t end = start[b];
+    for (size_t begin = start[b]; begin < start[b + 1]; ++begin) {
+      const float x = grouped[begin] + width;
+      if (x >= hi) {
+        end = n;
+      } else {
+        const size_t end_bin = binOf(x);
+        sortBin(end_bin);
+        end = std::max<size_t>(end, start[end_bin]);
+        while (end < start[end_bin + 1] && grouped[end] <= x) ++end;
+      }
+      if (end - begin > best_end - best_begin) best_begin = begin, best_end = end;
+    }
+  }
+  // The run's last value: its bin sorted.
+  const size_t last_bin =
+      static_cast<size_t>(std::upper_bound(start.begin(), start.end(), best_end - 1) -
+                          start.begin()) -
+      1;
+  sortBin(last_bin);
+  return {best_end - best_begin, grouped[best_begin], grouped[best_end - 1]};
+}
+
+}  // namespace tabletop_shapes
