@@ -18,6 +18,7 @@
 #include <numeric>
 #include <set>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace tabletop_shapes {
 namespace {
@@ -411,6 +412,7 @@ struct FootprintCell {
 struct TopFace {
   std::vector<Eigen::Vector2f> outline;  // convex hull of its points' footprints
   float height;                          // its highest cell
+  int parted_by_a_gap = -1;              // faces cut from one region along gaps share a number >= 0
 };
 
 // The area of a counter-clockwise polygon.
@@ -649,6 +651,100 @@ std::vector<std::vector<const FootprintCell*>> topsOf(
   return tops;
 }
 
+// ---- one region, several objects of the same height: split along the gap between them ----
+// Objects 5-10 mm apart whose tops lie within kTopFaceStep form one level region; when their
+// tops meet along a straight side (two boxes side by side) the outline has no neck. What parts
+// them is the gap: a straight corridor across the region in which no point of the top lies
+// (the camera sees into the gap, or the farther object's face below its top), while a top's
+// own points leave no such corridor. Projected onto the corridor's normal, in kGapBin bins,
+// the top's points leave an empty run of at least kMinTopGap that is kGapContrast times the
+// widest other empty run of that projection (1 cm or more away): the 5 mm voxel grid leaves
+// empty runs up to ~5 mm at regular steps in the directions of its rows, a gap one.
+constexpr float kGapBin = 0.001f;      // [m]
+constexpr float kMinTopGap = 0.0035f;  // [m]
+constexpr float kGapContrast = 2.0f;   // widest empty run / the next widest elsewhere
+constexpr int kGapDirections = 90;     // corridor directions tried, 2 deg apart
+constexpr int kMaxGapSplits = 3;       // a region parts into at most 2^3 objects
+constexpr int kGapTextureCells = 5;    // cells beside a run that counts as texture (not an end)
+
+// The region's cells parted along the best gap (see above), or the region itself.
+std::vector<std::vector<const FootprintCell*>> splitAlongAGap(
+    const std::vector<const FootprintCell*>& region, const std::vector<Eigen::Vector2f>& level) {
+  if (region.size() < 2 * kMinTopCells || level.size() < 2 * kMinTopCells) return {region};
+  float best_gap = 0.0f, best_cut = 0.0f;
+  Eigen::Vector2f best_normal = Eigen::Vector2f::Zero();
+  // Per bin: the lowest and highest projection of a point in it (none: lowest > highest), and the
+  // region's cells up to it (cell centres), for the cells on each side of a run.
+  std::vector<float> first_in_bin, last_in_bin;
+  std::vector<int> cells_up_to_bin;
+  for (int d = 0; d < kGapDirections; ++d) {
+    const float angle = static_cast<float>(kPi) * d / kGapDirections;
+    const Eigen::Vector2f normal(std::cos(angle), std::sin(angle));
+    float low = std::numeric_limits<float>::infinity(), high = -low;
+    for (const Eigen::Vector2f& q : level) {
+      low = std::min(low, normal.dot(q));
+      high = std::max(high, normal.dot(q));
+    }
+    const int bins = static_cast<int>((high - low) / kGapBin) + 1;
+    first_in_bin.assign(bins, std::numeric_limits<float>::infinity());
+    last_in_bin.assign(bins, -std::numeric_limits<float>::infinity());
+    cells_up_to_bin.assign(bins + 1, 0);
+    for (const Eigen::Vector2f& q : level) {
+      const float at = normal.dot(q);
+      const int b = std::min(bins - 1, static_cast<int>((at - low) / kGapBin));
+      first_in_bin[b] = std::min(first_in_bin[b], at);
+      last_in_bin[b] = std::max(last_in_bin[b], at);
+    }
+    for (const FootprintCell* cell : region) {
+      const float at = normal.dot(Eigen::Vector2f(cell->x + 0.5f, cell->y + 0.5f) * kFootprintCell);
+      ++cells_up_to_bin[std::clamp(static_cast<int>((at - low) / kGapBin) + 1, 0, bins)];
+    }
+    for (int b = 1; b <= bins; ++b) cells_up_to_bin[b] += cells_up_to_bin[b - 1];
+    // The gaps between consecutive points, at least a bin wide, with kGapTextureCells cells of
+    // the region on each side (the texture of the points, not the ragged ends); a cut needs
+    // kMinTopCells on each side.
+    float widest = 0.0f, widest_at = 0.0f;
+    std::vector<std::pair<float, float>> runs;  // width, middle [m along normal]
+    for (int b = 1; b < bins; ++b) {
+      if (last_in_bin[b - 1] < first_in_bin[b - 1] || !(first_in_bin[b] > last_in_bin[b])) continue;
+      int end = b;  // bin b - 1 holds points, b does not: the run ends at the next bin with one
+      while (end < bins && first_in_bin[end] > last_in_bin[end]) ++end;
+      if (end == bins) break;
+      const int middle = (b + end) / 2;
+      const int before = cells_up_to_bin[middle];
+      const int after = static_cast<int>(region.size()) - before;
+      if (std::min(before, after) >= kGapTextureCells) {
+        const float from = last_in_bin[b - 1], to = first_in_bin[end];
+        runs.emplace_back(to - from, 0.5f * (from + to));
+        if (std::min(before, after) >= static_cast<int>(kMinTopCells) && runs.back().first > widest)
+          std::tie(widest, widest_at) = runs.back();
+      }
+      b = end;
+    }
+    float next = 0.0f;
+    for (const auto& [width, at] : runs) {
+      if (std::abs(at - widest_at) >= kFootprintCell) next = std::max(next, width);
+    }
+    if (widest < kMinTopGap || widest <= best_gap) continue;
+    if (widest < kGapContrast * next) continue;
+    best_gap = widest;
+    best_cut = widest_at;
+    best_normal = normal;
+  }
+  if (best_gap == 0.0f) return {region};
+  std::vector<std::vector<const FootprintCell*>> sides(2);
+  for (const FootprintCell* cell : region) {
+    const float at =
+        best_normal.dot(Eigen::Vector2f(cell->x + 0.5f, cell->y + 0.5f) * kFootprintCell);
+    sides[at < best_cut ? 0 : 1].push_back(cell);
+  }
+  for (const auto& side : sides) {
+    if (side.size() < kMinTopCells || widthOf(outlineOf(side)) + 1.0f < kTopFaceWidth)
+      return {region};
+  }
+  return sides;
+}
+
 // The cells within `outline` (cell centres) whose highest point lies at the level of a face
 // from `bottom` to `top` (within kTopFaceStep): the face's own cells and the noisy ones of it
 // that depth noise made steep (at 1.1-1.3 m a third of a box top's 1 cm cells spread over more
@@ -734,16 +830,62 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     const std::vector<Eigen::Vector2f> hull = convexHull2d(std::move(centres));
     return hull.size() >= 3 && region.size() >= kNeckSplitFill * filledCells(hull);
   };
+  // The points at a region's level: those of its cells and of the steep cells around them (its
+  // edges), from a step under its lowest cell to half a step over its highest.
+  std::unordered_map<uint64_t, std::vector<int>> points_of_cell;
+  for (size_t i = 0; i < cluster.size(); ++i) points_of_cell[cell_of_point[i]].push_back(i);
+  std::unordered_set<uint64_t> visited;
+  auto levelPoints = [&](const std::vector<const FootprintCell*>& region) {
+    float low = std::numeric_limits<float>::infinity(), high = -low;
+    for (const FootprintCell* cell : region)
+      low = std::min(low, cell->height), high = std::max(high, cell->height);
+    std::vector<Eigen::Vector2f> level;
+    visited.clear();
+    auto take = [&](uint64_t key) {
+      if (!visited.insert(key).second) return;
+      for (int i : points_of_cell[key]) {
+        if (heights[i] >= low - kTopFaceStep && heights[i] <= high + 0.5f * kTopFaceStep)
+          level.push_back(footprints[i]);
+      }
+    };
+    for (const FootprintCell* cell : region) {
+      take(voxel_key::pack(cell->x, cell->y, 0));
+      forNeighbourCells(*cell, [&](uint64_t key, const FootprintCell& next) {
+        if (next.steep()) take(key);
+      });
+    }
+    return level;
+  };
+  // Objects of one level along straight gaps (up to kMaxGapSplits rounds).
+  auto splitAlongGaps = [&](std::vector<const FootprintCell*> region) {
+    std::vector<std::vector<const FootprintCell*>> pieces{std::move(region)}, next;
+    for (int round = 0; round < kMaxGapSplits; ++round) {
+      next.clear();
+      for (const auto& piece : pieces) {
+        for (auto& part : splitAlongAGap(piece, levelPoints(piece)))
+          next.push_back(std::move(part));
+      }
+      if (next.size() == pieces.size()) break;
+      pieces.swap(next);
+    }
+    return pieces;
+  };
   std::vector<std::vector<const FootprintCell*>> objects;
+  std::vector<int> parted_by_a_gap;  // per object: its region's number when cut along gaps
   for (const auto& chained : regions) {
     for (const auto& region : topsOf(chained)) {
       const bool two_side_by_side = region.size() >= 2 * kMinTopCells && nearlyConvex(region);
-      for (auto& object : two_side_by_side
-                              ? splitSideBySide(region)
-                              : std::vector<std::vector<const FootprintCell*>>{region}) {
-        for (const FootprintCell* cell : object)
-          cells.at(voxel_key::pack(cell->x, cell->y, 0)).region = static_cast<int>(objects.size());
-        objects.push_back(std::move(object));
+      for (auto& side : two_side_by_side ? splitSideBySide(region)
+                                         : std::vector<std::vector<const FootprintCell*>>{region}) {
+        std::vector<std::vector<const FootprintCell*>> pieces = splitAlongGaps(std::move(side));
+        const int gap_group = pieces.size() > 1 ? static_cast<int>(objects.size()) : -1;
+        for (auto& object : pieces) {
+          for (const FootprintCell* cell : object)
+            cells.at(voxel_key::pack(cell->x, cell->y, 0)).region =
+                static_cast<int>(objects.size());
+          objects.push_back(std::move(object));
+          parted_by_a_gap.push_back(gap_group);
+        }
       }
     }
   }
@@ -785,7 +927,7 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
     if (nested) continue;
     face_of_region[r] = static_cast<int>(faces.size());
     region_of_face.push_back(static_cast<int>(r));
-    faces.push_back({{}, top[r]});
+    faces.push_back({{}, top[r], parted_by_a_gap[r]});
   }
   // Outlines: the points of a face's cells and of the steep cells around them (its edges) at
   // its height, within half a step.
@@ -892,10 +1034,12 @@ void joinFacesPartedByAKnob(std::vector<TopFace>& faces,
 
 // The part's objects standing side by side, one per top face; the part itself when it has fewer
 // than two top faces, or when a face would hold fewer than min_points (that face is dropped).
-// `own_top_faces`: whether each object returned lies under a level top face of its own.
+// `own_top_faces`: whether each object returned lies under a level top face of its own;
+// `parted_by_a_gap`: per object, its face's TopFace::parted_by_a_gap.
 std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& table, int min_points,
-                                         bool& own_top_faces) {
+                                         bool& own_top_faces, std::vector<int>& parted_by_a_gap) {
   own_top_faces = false;
+  parted_by_a_gap.assign(1, -1);
   const Cloud& cloud = *part;
   if (static_cast<int>(cloud.size()) < min_points) return {part};
   const TableProjection onTable(table);
@@ -923,11 +1067,13 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
   std::vector<std::vector<int>> indices(faces.size());
   for (size_t i = 0; i < face_of.size(); ++i) indices[face_of[i]].push_back(static_cast<int>(i));
   std::vector<CloudPtr> out;
-  for (const std::vector<int>& of_face : indices) {
-    auto object = std::make_shared<Cloud>(cloud, of_face);
+  parted_by_a_gap.clear();
+  for (size_t f = 0; f < faces.size(); ++f) {
+    auto object = std::make_shared<Cloud>(cloud, indices[f]);
     object->header = cloud.header;
     object->is_dense = true;
     out.push_back(object);
+    parted_by_a_gap.push_back(faces[f].parted_by_a_gap);
   }
   return out;
 }
@@ -1023,8 +1169,12 @@ std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const
 // has such a point over it (kMaxUncoveredGapCells aside): what cut the face lies across it. Two
 // boxes of one height standing side by side have nothing over the gap between them; the gap between
 // diagonal neighbours in a block holds the other two, one of them seen lower.
+// Objects whose faces were cut from one region along an empty gap (`parted_by_a_gap`, the same
+// number >= 0) are neighbours a few millimetres apart, not halves of one top: nothing lies
+// across the gap (their joint outline may still reach over taller neighbours).
 constexpr int kMaxUncoveredGapCells = 2;
 std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
+                                                  std::vector<int> parted_by_a_gap,
                                                   const Cloud& surroundings, const Plane& table,
                                                   float smear, int needed) {
   if (objects.size() < 2) return objects;
@@ -1077,11 +1227,14 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     joined = false;
     for (size_t i = 0; i < objects.size() && !joined; ++i) {
       for (size_t j = i + 1; j < objects.size() && !joined; ++j) {
-        if (!coveredGap(*objects[i], *objects[j]) || !touch(*objects[i], objects[j])) continue;
+        if ((parted_by_a_gap[i] >= 0 && parted_by_a_gap[i] == parted_by_a_gap[j]) ||
+            !coveredGap(*objects[i], *objects[j]) || !touch(*objects[i], objects[j]))
+          continue;
         auto merged = std::make_shared<Cloud>(*objects[i]);
         *merged += *objects[j];
         objects[i] = merged;
         objects.erase(objects.begin() + j);
+        parted_by_a_gap.erase(parted_by_a_gap.begin() + j);
         joined = true;
       }
     }
@@ -1287,9 +1440,12 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
         continue;
       }
       bool own_top_faces = false;
-      const std::vector<CloudPtr> objects = joinTopsCutByAnObjectOnThem(
-          splitUnderTopFaces(stack_part, table, min_points, own_top_faces), surroundings, table,
-          smear, stackEvidencePoints(params));
+      std::vector<int> parted_by_a_gap;
+      std::vector<CloudPtr> faces =
+          splitUnderTopFaces(stack_part, table, min_points, own_top_faces, parted_by_a_gap);
+      const std::vector<CloudPtr> objects =
+          joinTopsCutByAnObjectOnThem(std::move(faces), std::move(parted_by_a_gap), surroundings,
+                                      table, smear, stackEvidencePoints(params));
       for (const CloudPtr& object : objects)
         out.emplace_back(object, own_top_faces ? kSeparateObjects : -1);
     }
