@@ -160,5 +160,36 @@ TEST(Support, TallBoxOnABoxSeenOnlyInFrontOfItKeepsItsLift) {
   EXPECT_NEAR(-supports[1].d, lower_height, 0.003f);
 }
 
+// The split cuts a pile at its concave seam, blurred upwards by noise: the box beneath keeps the
+// upper box's lowest centimetre of side faces (rendered stacked clutter: bottoms 2-13 mm high).
+// The top face of the box beneath, around the upper one, gives the real bottom: 6 cm, not 7.
+TEST(Support, BoxOnABoxWhoseLowestRowsWentToTheBoxBeneathRestsOnItsTopFace) {
+  const synthetic::Sampler s = synthetic::voxelGridSampler();
+  const float lower_height = 0.06f, lost_rows = 0.01f;
+  const Eigen::Vector3f upper_size(0.10f, 0.07f, 0.05f);
+  const CloudPtr whole_upper =
+      synthetic::lifted(synthetic::box(upper_size, {0.01f, 0.0f}, 0.0f, s), lower_height);
+  auto lower = synthetic::withoutFootprint(
+      synthetic::box({0.17f, 0.12f, lower_height}, {0.0f, 0.0f}, 0.0f, s), -0.04f, 0.06f, -0.035f,
+      0.035f, lower_height);
+  auto upper = std::make_shared<Cloud>();
+  for (const auto& p : *whole_upper) {
+    (p.z < lower_height + lost_rows ? *lower : *upper).push_back(p);
+  }
+  ASSERT_GT(upper->size(), 100u);
+  const std::vector<Plane> supports =
+      supportPlanes({lower, upper}, synthetic::tablePlane(), s.camera);
+  ASSERT_EQ(supports.size(), 2u);
+  EXPECT_FLOAT_EQ(supports[0].d, 0.0f);
+  EXPECT_NEAR(-supports[1].d, lower_height, 0.002f);
+
+  const ShapeFit fit = ShapeEstimator().estimate(upper, supports[1]);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  ASSERT_EQ(fit.type, ShapeType::Cube);
+  Eigen::Vector3f dims = fit.dimensions;
+  std::sort(dims.data(), dims.data() + 3);
+  EXPECT_NEAR(dims[0], upper_size.z(), 0.005f);  // 5 cm, not 4
+}
+
 }  // namespace
 }  // namespace tabletop_shapes

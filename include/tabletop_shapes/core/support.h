@@ -12,7 +12,8 @@ namespace tabletop_shapes {
 // footprint of another cluster whose top reaches up to them; a cluster whose lower part is only
 // hidden (behind an object in front) has nothing under it and keeps the table: its bottom edge
 // lies behind that object's footprint as seen from `eye` (the camera, in the clusters' frame),
-// and its centre is not over it.
+// and its centre is not over it. A lifted cluster rests on the top face of the objects beneath
+// where they show one lower than its own lowest points (the split leaves the seam's rows below).
 std::vector<Plane> supportPlanes(const std::vector<CloudPtr>& clusters, const Plane& table,
                                  const Eigen::Vector3f& eye);
 
