@@ -155,8 +155,10 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
-// counted four at a time, with the same float arithmetic per point as Plane::signedDistance
-// ((nx x + ny y) + nz z + d), so the same counts.
+// counted four at a time as ((nx x + ny y) + nz z) + d. Eigen's dot in Plane::signedDistance
+// adds in another order (nx x + (ny y + nz z)): a point within a float's rounding of the
+// threshold may count differently from a plain loop (deterministic; the refits use
+// signedDistance's order).
 class ScoringPoints {
  public:
   ScoringPoints(const Cloud& cloud, const std::vector<int>& indices)
