@@ -703,6 +703,13 @@ Circle fitCircleAlgebraic(const std::vector<Eigen::Vector2f>& points) {
   return algebraicCircle(toDouble(points));
 }
 
+float largestAngularGap(std::vector<float> angles) {
+  std::sort(angles.begin(), angles.end());
+  float gap = angles.front() + 2.0f * static_cast<float>(kPi) - angles.back();
+  for (size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  return gap;
+}
+
 Circle refineCircleGeometric(const std::vector<Eigen::Vector2f>& points, const Circle& initial,
                              int max_iterations) {
   return geometricCircle(toDouble(points), initial, max_iterations);

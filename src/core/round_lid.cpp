@@ -70,9 +70,7 @@ float coveredArcDeg(const std::vector<Eigen::Vector2f>& points, const Circle& ci
     angles.push_back(std::atan2(d.y(), d.x()));
   }
   if (angles.size() < 2) return 0.0f;
-  std::sort(angles.begin(), angles.end());
-  float gap = angles.front() + 2.0f * static_cast<float>(kPi) - angles.back();
-  for (size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  const float gap = largestAngularGap(std::move(angles));
   return 360.0f - gap * 180.0f / static_cast<float>(kPi);
 }
 

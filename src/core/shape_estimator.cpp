@@ -568,9 +568,7 @@ VisibleArc visibleArc(const ShapeFit& round, const Cloud& cluster, float rim_ban
   }
   VisibleArc arc;
   if (angles.size() < 2) return arc;
-  std::sort(angles.begin(), angles.end());
-  float gap = angles.front() + 2.0f * static_cast<float>(kPi) - angles.back();
-  for (size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  const float gap = largestAngularGap(angles);
   arc.sagitta = round.radius * (1.0f - std::cos(0.5f * (2.0f * static_cast<float>(kPi) - gap)));
   arc.rms = static_cast<float>(std::sqrt(squared / static_cast<double>(angles.size())));
   return arc;

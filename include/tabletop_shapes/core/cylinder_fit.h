@@ -17,6 +17,9 @@ Circle fitCircleAlgebraic(const std::vector<Eigen::Vector2f>& points);
 // Geometric least squares (Gauss-Newton / Levenberg-Marquardt on |p - c| - r).
 Circle refineCircleGeometric(const std::vector<Eigen::Vector2f>& points, const Circle& initial,
                              int max_iterations);
+// The largest gap [rad] between consecutive angles around the circle (atan2 values; at least
+// two): a full turn less it is the arc they cover.
+float largestAngularGap(std::vector<float> angles);
 
 // Axis = table normal. center = centre of the solid (half the height above the table).
 ShapeFit fitCylinder(const NormalCloud& object, const Plane& table, const CylinderParams& params);
