@@ -297,13 +297,7 @@ void GridSearch<PointT>::forEachNearestK(
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   std::once_flag fallback_built;
   // Whole runs (cells) per part, so that each point sees the same previous point as in one pass.
-  threads = std::max(1u, threads);
-  const size_t parts = threads > 1 ? std::min<size_t>(4 * threads, points_.size()) : 1;
-  std::vector<size_t> bounds(parts + 1);
-  for (size_t part = 0; part <= parts; ++part) {
-    bounds[part] = runStartAtOrAfter(part * points_.size() / parts);
-  }
-  auto nearestInPart = [&](size_t part) {
+  auto nearestInPart = [&](size_t first, size_t last) {
     std::vector<float> xs, ys, zs, block_squared, squared, nearest;
     pcl::Indices fallback_indices;
     // The previous point of the same cell and its k-th distance: the k nearest of q lie within
@@ -312,8 +306,7 @@ void GridSearch<PointT>::forEachNearestK(
     const Entry* previous = nullptr;
     float previous_kth = 0.0f;
     forEachPointInBlocks(
-        bounds[part], bounds[part + 1],
-        [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
+        first, last, [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
         [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
         [&](const Entry& q, float covered_squared) {
           squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
@@ -355,7 +348,20 @@ void GridSearch<PointT>::forEachNearestK(
           visit(q.index, nearest);
         });
   };
-  parallelFor(parts, nearestInPart, threads);
+  forEachPart(threads, nearestInPart);
+}
+
+template <typename PointT>
+void GridSearch<PointT>::forEachPart(unsigned threads,
+                                     const std::function<void(size_t, size_t)>& visitPart) const {
+  threads = std::max(1u, threads);
+  const size_t parts = threads > 1 ? std::min<size_t>(4 * threads, points_.size()) : 1;
+  std::vector<size_t> bounds(parts + 1);
+  for (size_t part = 0; part <= parts; ++part) {
+    bounds[part] = runStartAtOrAfter(part * points_.size() / parts);
+  }
+  parallelFor(
+      parts, [&](size_t part) { visitPart(bounds[part], bounds[part + 1]); }, threads);
 }
 
 template <typename PointT>
@@ -401,44 +407,47 @@ void GridSearch<PointT>::forEachNearestKIndices(
 
 template <typename PointT>
 void GridSearch<PointT>::forEachRadiusNeighbours(
-    double radius, const std::function<void(int, const pcl::Indices&)>& visit) const {
+    double radius, const std::function<void(int, const pcl::Indices&)>& visit,
+    unsigned threads) const {
   if (points_.empty() || !(radius >= 0.0)) return;
   const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
   const int reach = static_cast<int>(std::ceil(radius * inv_cell_));
-  std::vector<float> xs, ys, zs, squared;
-  std::vector<int> indices;
-  std::vector<uint64_t> keys;
-  pcl::Indices neighbours;
-  for (size_t begin = 0; begin < points_.size();) {
-    const Run run = runAt(begin);
-    const int cx = run.cx, cy = run.cy, cz = run.cz;
-    const size_t end = run.end;
-    xs.clear(), ys.clear(), zs.clear(), indices.clear();
-    for (int ring = 0; ring <= reach; ++ring) {
-      visitRing(cx, cy, cz, ring, [&](const Entry& e) {
-        xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
-      });
-    }
-    for (size_t i = begin; i < end; ++i) {
-      const Entry& q = points_[i];
-      squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
-      // (distance, index) as one integer: the bits of a float >= 0 order as its value, so
-      // sorting the keys orders as radiusSearch's sort of pairs, in fewer instructions.
-      keys.clear();
-      for (size_t j = 0; j < xs.size(); ++j) {
-        if (squared[j] < radius_sq) {
-          uint32_t bits;
-          std::memcpy(&bits, &squared[j], sizeof bits);
-          keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
-        }
+  forEachPart(threads, [&](size_t first, size_t last) {
+    std::vector<float> xs, ys, zs, squared;
+    std::vector<int> indices;
+    std::vector<uint64_t> keys;
+    pcl::Indices neighbours;
+    for (size_t begin = first; begin < last;) {
+      const Run run = runAt(begin);
+      const int cx = run.cx, cy = run.cy, cz = run.cz;
+      const size_t end = run.end;
+      xs.clear(), ys.clear(), zs.clear(), indices.clear();
+      for (int ring = 0; ring <= reach; ++ring) {
+        visitRing(cx, cy, cz, ring, [&](const Entry& e) {
+          xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
+        });
       }
-      if (this->sorted_results_) std::sort(keys.begin(), keys.end());
-      neighbours.resize(keys.size());
-      for (size_t j = 0; j < keys.size(); ++j) neighbours[j] = static_cast<int>(keys[j] & ~0u);
-      visit(q.index, neighbours);
+      for (size_t i = begin; i < end; ++i) {
+        const Entry& q = points_[i];
+        squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
+        // (distance, index) as one integer: the bits of a float >= 0 order as its value, so
+        // sorting the keys orders as radiusSearch's sort of pairs, in fewer instructions.
+        keys.clear();
+        for (size_t j = 0; j < xs.size(); ++j) {
+          if (squared[j] < radius_sq) {
+            uint32_t bits;
+            std::memcpy(&bits, &squared[j], sizeof bits);
+            keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
+          }
+        }
+        if (this->sorted_results_) std::sort(keys.begin(), keys.end());
+        neighbours.resize(keys.size());
+        for (size_t j = 0; j < keys.size(); ++j) neighbours[j] = static_cast<int>(keys[j] & ~0u);
+        visit(q.index, neighbours);
+      }
+      begin = end;
     }
-    begin = end;
-  }
+  });
 }
 
 template <typename PointT>

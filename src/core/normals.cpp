@@ -1,6 +1,7 @@
 #include "tabletop_shapes/core/normals.h"
 
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/parallel.h"
 
 #include <pcl/common/centroid.h>
 #include <pcl/common/eigen.h>
@@ -123,9 +124,12 @@ void fitLocalSurface(const Cloud& cloud, int index, const pcl::Indices& neighbou
   plane.head<3>() = eigen_vector;
   plane[3] = -1 * plane.dot(centroid);
   result.query_point = cloud[index].getVector3fMap().cast<double>();
-  if (!eigen_vector.allFinite()) {
+  if (!eigen_vector.allFinite()) {  // no plane (coincident or collinear neighbours)
     result.valid = false;
     result.mean = result.query_point;
+    // No normal, so the point is dropped: PCL leaves the normal as it was, here that of the
+    // point fitted before on this thread, which depends on how the points are shared out.
+    result.plane_normal = eigen_vector;
     return;
   }
   result.valid = true;
@@ -173,12 +177,13 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
   // of half the radius cost more: 125 hash lookups per cell of only a few points.)
   GridSearch<Point> search(params.search_radius);
   search.setInputCloud(finite);
-  pcl::MLSResult surface;
-  // Visited cell by cell; kept in the cloud's order.
+  // Visited cell by cell, on every free core (each point's surface depends on its neighbours
+  // alone); kept in the cloud's order.
   std::vector<pcl::PointNormal> by_index(finite->size());
   std::vector<char> fitted(finite->size(), 0);
-  search.forEachRadiusNeighbours(params.search_radius, [&](int i, const pcl::Indices& neighbours) {
+  auto smooth = [&](int i, const pcl::Indices& neighbours) {
     if (neighbours.size() < 3) return;
+    thread_local pcl::MLSResult surface;
     fitLocalSurface(*finite, i, neighbours, params.search_radius, order, surface);
     const pcl::MLSResult::MLSProjectionResults projected =
         surface.projectQueryPoint(pcl::MLSResult::SIMPLE, coefficients);
@@ -187,7 +192,8 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
     p.getNormalVector3fMap() = projected.normal.cast<float>();
     p.curvature = static_cast<float>(surface.curvature);
     fitted[i] = 1;
-  });
+  };
+  search.forEachRadiusNeighbours(params.search_radius, smooth, freeWorkerThreads());
   smoothed.reserve(finite->size());
   for (size_t i = 0; i < by_index.size(); ++i) {
     if (fitted[i]) smoothed.push_back(by_index[i]);

@@ -12,6 +12,8 @@ namespace tabletop_shapes {
 namespace {
 
 std::atomic<unsigned> chosen_threads{0};
+// True on a thread while it runs the items of a parallelFor with more than one thread.
+thread_local bool running_parallel_items = false;
 
 unsigned threadsFromEnvironment() {
   const char* text = std::getenv("TABLETOP_SHAPES_THREADS");
@@ -32,6 +34,8 @@ unsigned workerThreads() {
 
 void setWorkerThreads(unsigned threads) { chosen_threads = threads; }
 
+unsigned freeWorkerThreads() { return running_parallel_items ? 1 : workerThreads(); }
+
 void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned threads) {
   if (threads == 0) threads = workerThreads();
   const size_t workers = std::min<size_t>(threads, n);
@@ -43,6 +47,8 @@ void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned thr
   std::exception_ptr error;
   std::mutex error_mutex;
   auto work = [&]() {
+    const bool was_running_items = running_parallel_items;
+    running_parallel_items = true;
     for (size_t i = next++; i < n; i = next++) {
       try {
         body(i);
@@ -51,6 +57,7 @@ void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned thr
         if (!error) error = std::current_exception();
       }
     }
+    running_parallel_items = was_running_items;
   };
   std::vector<std::thread> helpers;
   helpers.reserve(workers - 1);

@@ -78,6 +78,33 @@ TEST(GridSearch, RadiusNeighboursOfEveryPointAreThoseOfAPairwiseSearch) {
   }
 }
 
+// Shared out among threads, the cells give every point the lists of one pass.
+TEST(GridSearch, RadiusNeighboursOnSeveralThreadsAreThoseOfOnePass) {
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.02f);
+  search.setInputCloud(cloud);
+  std::vector<pcl::Indices> one_pass(cloud->size()), shared_out(cloud->size());
+  std::vector<int> visits(cloud->size(), 0);
+  search.forEachRadiusNeighbours(
+      0.02, [&](int i, const pcl::Indices& neighbours) { one_pass[i] = neighbours; });
+  for (const unsigned threads : {2u, 3u}) {
+    std::fill(visits.begin(), visits.end(), 0);
+    search.forEachRadiusNeighbours(
+        0.02,
+        [&](int i, const pcl::Indices& neighbours) {
+          shared_out[i] = neighbours;
+          ++visits[i];  // each point on one thread only
+        },
+        threads);
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) {
+      EXPECT_EQ(visits[i], 1) << i << ", " << threads << " threads";
+      EXPECT_EQ(shared_out[i], one_pass[i]) << "point " << i << ", " << threads << " threads";
+      EXPECT_GE(one_pass[i].size(), 1u);
+    }
+    EXPECT_EQ(visits.back(), 0);  // the NaN point
+  }
+}
+
 TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
   // 1 cm cells as predictShape uses them: the surface's points find their k nearest in the
   // block of cells around them, the sparse points around it fall back to the growing rings.

@@ -1,11 +1,17 @@
 #include "tabletop_shapes/core/normals.h"
+#include "tabletop_shapes/core/parallel.h"
 
 #include <gtest/gtest.h>
 #include <pcl/common/centroid.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/surface/mls.h>
 
+#include <pcl/common/eigen.h>
+
+#include <Eigen/Cholesky>
+
 #include <chrono>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -175,6 +181,115 @@ TEST(NormalsMLS, CentroidAndCovarianceAreBitForBitThoseOfPcl) {
     for (int k = 0; k < 4; ++k) EXPECT_EQ(centroid[k], expected_centroid[k]) << trial;
     for (int k = 0; k < 9; ++k) EXPECT_EQ(covariance(k), expected_covariance(k)) << trial;
     EXPECT_GT(covariance(0, 0), 0.0);
+  }
+}
+
+// MLS of order 2 as its definition reads, one neighbour and one sum at a time: the neighbours
+// within the radius nearest first (ties by index), the plane of their centroid and covariance,
+// the weighted normal equations of the height polynomial summed neighbour by neighbour in that
+// order, solved by LLT, the query point projected on the polynomial.
+pcl::PointNormal definitionOfMls(const Cloud& cloud, size_t query, float radius, bool& fitted) {
+  std::vector<std::pair<float, int>> near;
+  const Point& q = cloud[query];
+  const float radius_squared = static_cast<float>(double(radius) * double(radius));  // as FLANN
+  for (size_t j = 0; j < cloud.size(); ++j) {
+    const float dx = cloud[j].x - q.x, dy = cloud[j].y - q.y, dz = cloud[j].z - q.z;
+    const float d = dx * dx + dy * dy + dz * dz;
+    if (d < radius_squared) near.emplace_back(d, static_cast<int>(j));
+  }
+  std::sort(near.begin(), near.end());
+  std::vector<int> neighbours;
+  for (const auto& n : near) neighbours.push_back(n.second);
+  fitted = neighbours.size() >= 3;
+  pcl::MLSResult surface;
+  Eigen::Vector4d centroid;
+  Eigen::Matrix3d covariance;
+  pcl::compute3DCentroid(cloud, neighbours, centroid);
+  pcl::computeCovarianceMatrix(cloud, neighbours, centroid, covariance);
+  double eigen_value;
+  Eigen::Vector3d normal;
+  pcl::eigen33(covariance, eigen_value, normal);
+  fitted = fitted && normal.allFinite();
+  Eigen::Vector4d plane = Eigen::Vector4d::Zero();  // PCL's plane through the centroid
+  plane.head<3>() = normal;
+  plane[3] = -plane.dot(centroid);
+  surface.query_point = q.getVector3fMap().cast<double>();
+  const double distance = surface.query_point.dot(normal) + plane[3];
+  surface.mean = surface.query_point - distance * normal;
+  surface.plane_normal = normal;
+  surface.v_axis = normal.unitOrthogonal();
+  surface.u_axis = normal.cross(surface.v_axis);
+  surface.num_neighbors = static_cast<int>(neighbours.size());
+  surface.order = 2;
+  if (neighbours.size() >= 6) {
+    Eigen::Matrix<double, 6, 6> normal_matrix = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> right = Eigen::Matrix<double, 6, 1>::Zero();
+    for (const int n : neighbours) {
+      const Eigen::Vector3d offset(cloud[n].x - surface.mean[0], cloud[n].y - surface.mean[1],
+                                   cloud[n].z - surface.mean[2]);
+      const double weight = std::exp(-offset.dot(offset) / (double(radius) * double(radius)));
+      const double u = offset.dot(surface.u_axis), v = offset.dot(surface.v_axis);
+      const double terms[6] = {1.0, v, v * v, u, u * v, u * u};  // u^i v^j, j fastest
+      for (int a = 0; a < 6; ++a) {
+        right[a] += weight * terms[a] * offset.dot(surface.plane_normal);
+        for (int b = 0; b <= a; ++b) normal_matrix(a, b) += weight * terms[a] * terms[b];
+      }
+    }
+    surface.c_vec = normal_matrix.selfadjointView<Eigen::Lower>().llt().solve(right);
+  }
+  const pcl::MLSResult::MLSProjectionResults projected =
+      surface.projectQueryPoint(pcl::MLSResult::SIMPLE, 6);
+  pcl::PointNormal p;
+  p.getVector3fMap() = projected.point.cast<float>();
+  Eigen::Vector3f n = projected.normal.cast<float>();
+  n /= n.norm();
+  if (n.dot(-p.getVector3fMap()) < 0.0f) n = -n;
+  p.getNormalVector3fMap() = n;
+  return p;
+}
+
+bool sameFloats(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return std::memcmp(a.data(), b.data(), sizeof(float) * 3) == 0;
+}
+
+// The sums' order is part of the answer (each point's surface rounds by it): our fit, on one
+// thread and shared out over two, gives the definition's floats, every one.
+TEST(NormalsMLS, SurfaceAndNormalOfEveryPointAreThoseOfTheDefinitionBitForBit) {
+  auto cloud = std::make_shared<Cloud>();
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0f, 0.0015f);
+  for (float a = -0.06f; a <= 0.06f; a += 0.005f) {
+    for (float b = -0.05f; b <= 0.05f; b += 0.005f) {
+      cloud->push_back(Point(0.2f + a, b + noise(rng), 1.1f + 2.5f * a * a - b * a + noise(rng)));
+    }
+  }
+  // Four points with 4 neighbours each (a plane, no polynomial); four in a line (no plane, no
+  // normal: dropped).
+  for (int i = 0; i < 4; ++i) {
+    cloud->push_back(Point(0.4f + 0.006f * (i % 2), 0.2f + 0.006f * (i / 2), 1.2f + 0.001f * i));
+    cloud->push_back(Point(0.4f + 0.006f * i, 0.3f, 1.2f));
+  }
+  const NormalParams params;  // order 2, radius 2 cm
+  ASSERT_EQ(params.polynomial_order, 2);
+  std::vector<pcl::PointNormal> expected;
+  for (size_t i = 0; i < cloud->size(); ++i) {
+    bool fitted = false;
+    const pcl::PointNormal p = definitionOfMls(*cloud, i, params.search_radius, fitted);
+    if (fitted) expected.push_back(p);
+  }
+  EXPECT_EQ(expected.size(), cloud->size() - 4);  // all but the line
+  for (const unsigned threads : {1u, 2u}) {
+    setWorkerThreads(threads);
+    NormalCloud ours;
+    estimateNormalsMLS(cloud, params, ours);
+    setWorkerThreads(0);
+    ASSERT_EQ(ours.size(), expected.size()) << threads << " threads";
+    int differing = 0;
+    for (size_t i = 0; i < ours.size(); ++i) {
+      differing += !sameFloats(ours[i].getVector3fMap(), expected[i].getVector3fMap()) ||
+                   !sameFloats(ours[i].getNormalVector3fMap(), expected[i].getNormalVector3fMap());
+    }
+    EXPECT_EQ(differing, 0) << "of " << ours.size() << " points, " << threads << " threads";
   }
 }
 

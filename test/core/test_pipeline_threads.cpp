@@ -78,6 +78,21 @@ TEST(ParallelFor, WorkerThreadsAsSet) {
   for (size_t i = 0; i < done.size(); ++i) EXPECT_EQ(done[i], static_cast<int>(i) + 1);
 }
 
+// A parallelFor's items keep the cores busy: work they start runs on their own thread, while a
+// single item (one object on the table) may take every core.
+TEST(ParallelFor, FreeWorkerThreadsOneWithinItemsOfSeveralThreads) {
+  setWorkerThreads(2);
+  EXPECT_EQ(freeWorkerThreads(), 2u);
+  std::vector<unsigned> free_in_items(4, 0);
+  parallelFor(free_in_items.size(), [&](size_t i) { free_in_items[i] = freeWorkerThreads(); });
+  for (const unsigned free : free_in_items) EXPECT_EQ(free, 1u);
+  unsigned free_in_single_item = 0;
+  parallelFor(1, [&](size_t) { free_in_single_item = freeWorkerThreads(); });
+  EXPECT_EQ(free_in_single_item, 2u);
+  EXPECT_EQ(freeWorkerThreads(), 2u);  // back outside the items
+  setWorkerThreads(0);
+}
+
 // OSD learn34 (test/data: x y z and labels only) gave other objects with 2 threads than with 1,
 // and from run to run (the bowl's piece 737 or 785 points): LCCP visited its supervoxels in the
 // order of their heap addresses (cluster_split.cpp). learn33 (a bowl, mugs) and learn17 (a box

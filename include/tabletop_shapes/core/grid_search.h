@@ -56,9 +56,11 @@ class GridSearch : public pcl::search::Search<PointT> {
   // as radiusSearch finds and orders them: visit(index, neighbour indices), points in no
   // particular order. The same lists as one radiusSearch per point, cheaper: the candidates
   // around each cell are gathered once for all the points in it, and the distances to them are
-  // one loop over flat arrays.
+  // one loop over flat arrays. threads > 1: the cells are shared out among that many threads,
+  // which call visit concurrently (for different points), with the same lists.
   void forEachRadiusNeighbours(double radius,
-                               const std::function<void(int, const pcl::Indices&)>& visit) const;
+                               const std::function<void(int, const pcl::Indices&)>& visit,
+                               unsigned threads = 1) const;
   // The connected components of the input's points linked when closer than `radius` (squared
   // distance < radius^2, as radiusSearch): the input indices of each, ascending, components in
   // the order of their smallest index, as pcl::extractEuclideanClusters finds them (before it
@@ -94,6 +96,10 @@ class GridSearch : public pcl::search::Search<PointT> {
   // The start of the run holding points_[position], or of the next run when it starts inside
   // one; points_.size() at the end.
   size_t runStartAtOrAfter(size_t position) const;
+  // Calls visitPart(first, last) for parts of points_ made of whole runs (cells), on up to
+  // `threads` threads: one part for one thread, else 4 per thread, so that a thread slowed by
+  // other work takes fewer.
+  void forEachPart(unsigned threads, const std::function<void(size_t, size_t)>& visitPart) const;
   // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>

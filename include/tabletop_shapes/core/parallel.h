@@ -18,4 +18,9 @@ void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned thr
 unsigned workerThreads();
 void setWorkerThreads(unsigned threads);  // 0: back to the environment / one per core
 
+// The threads for parallel work started from the calling thread: 1 on a thread that parallelFor
+// runs items on (with more than one thread: its items keep the cores busy already), else
+// workerThreads(). A single item (one object on the table) then still gets every core.
+unsigned freeWorkerThreads();
+
 }  // namespace tabletop_shapes
