@@ -1,5 +1,6 @@
 #include "tabletop_shapes/core/normals.h"
 
+#include "tabletop_shapes/core/exp_lanes.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
 
@@ -13,10 +14,14 @@
 #include <cmath>
 
 namespace tabletop_shapes {
+namespace {
+
+using Pair = double __attribute__((vector_size(16)));  // SSE2 through GCC's vector extension
+
+}  // namespace
 
 void centroidAndCovariance(const Cloud& cloud, const pcl::Indices& indices,
                            Eigen::Vector4d& centroid, Eigen::Matrix3d& covariance) {
-  using Pair = double __attribute__((vector_size(16)));
   Pair sum_xy = {0.0, 0.0};
   double sum_z = 0.0;
   for (const int i : indices) {
@@ -46,56 +51,136 @@ namespace {
 
 constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
-// The weighted least-squares polynomial of MLS over the Darboux frame in `result` (PCL's
-// weight exp(-d^2 / r^2)): its normal equations summed neighbour by neighbour, the order fixed
-// at compile time so that the loops over the terms unroll. The sums run on pairs of doubles
-// (SSE2 through GCC's vector extension: each lane does the same multiply and add, so every
-// entry is the same double as one at a time), the lower triangle's row a as its first a / 2 + 1
-// pairs: about half the instructions per neighbour of the scalar sums.
+// The sizes of MLS's polynomial of order kOrder: its terms, as pairs; its normal equations'
+// lower triangle, row a as its first a / 2 + 1 pairs (rows[a][b / 2][b % 2]: entry (a, b)).
 template <int kOrder>
-void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double search_radius,
-                   pcl::MLSResult& result) {
-  using Pair = double __attribute__((vector_size(16)));
-  constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
-  constexpr int kPairs = (kTerms + 1) / 2;
-  Pair rows[kTerms][kPairs] = {};  // rows[a][b / 2][b % 2]: entry (a, b), b <= a
-  Pair right_side[kPairs] = {};
-  Pair terms[kPairs] = {};  // a padding term stays 0
-  const double squared_radius = search_radius * search_radius;
-  for (const int neighbour : neighbours) {
-    const Eigen::Vector3d offset(cloud[neighbour].x - result.mean[0],
-                                 cloud[neighbour].y - result.mean[1],
-                                 cloud[neighbour].z - result.mean[2]);
-    const double weight = std::exp(-offset.dot(offset) / squared_radius);
-    const double u = offset.dot(result.u_axis), v = offset.dot(result.v_axis);
-    const double height = offset.dot(result.plane_normal);
-    int j = 0;
-    double u_power = 1;
+struct Polynomial {
+  static constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
+  static constexpr int kPairs = (kTerms + 1) / 2;
+  using Terms = Pair[kPairs];
+  using Rows = Pair[kTerms][kPairs];
+};
+
+// A neighbour as the polynomial fit sees it: its offset from the projected query point over the
+// Darboux frame (u, v) and along the normal; its weight (PCL's exp(-d^2 / r^2)) is kept apart,
+// in an array of its own for expInPlace.
+struct FrameOffset {
+  double u, v, height;
+};
+
+// The polynomial's terms at (u, v) in PCL's order, u^i v^j with j fastest, as pairs (a padding
+// term stays 0).
+template <int kOrder>
+inline void polynomialTerms(double u, double v, typename Polynomial<kOrder>::Terms& terms) {
+  double scalar[2 * Polynomial<kOrder>::kPairs] = {};
+  int j = 0;
+  double u_power = 1;
 #pragma GCC unroll 5
-    for (int ui = 0; ui <= kOrder; ++ui) {  // PCL's term order: u^i v^j, j fastest
-      double v_power = 1;
+  for (int ui = 0; ui <= kOrder; ++ui) {
+    double v_power = 1;
 #pragma GCC unroll 5
-      for (int vi = 0; vi <= kOrder - ui; ++vi, ++j) {
-        terms[j / 2][j % 2] = u_power * v_power;
-        v_power *= v;
-      }
-      u_power *= u;
+    for (int vi = 0; vi <= kOrder - ui; ++vi, ++j) {
+      scalar[j] = u_power * v_power;
+      v_power *= v;
     }
-    const Pair weight_pair = {weight, weight}, height_pair = {height, height};
+    u_power *= u;
+  }
+#pragma GCC unroll 8
+  for (int p = 0; p < Polynomial<kOrder>::kPairs; ++p)
+    terms[p] = Pair{scalar[2 * p], scalar[2 * p + 1]};
+}
+
+// Rows [kFirstRow, kEndRow) of the normal equations' lower triangle (row a as its first
+// a / 2 + 1 pairs) and, when kRightSide, the right-hand side, summed over the samples in their
+// order: each entry is the sum of (weight term_a) term_b (or height) from 0, neighbour by
+// neighbour. Few enough rows per pass that the sums stay in registers.
+template <int kOrder, int kFirstRow, int kEndRow, bool kRightSide>
+void sumRows(const std::vector<double>& weights, const std::vector<FrameOffset>& offsets,
+             typename Polynomial<kOrder>::Rows& rows,
+             typename Polynomial<kOrder>::Terms& right_side) {
+  constexpr int kPairs = Polynomial<kOrder>::kPairs;
+  Pair sums[kEndRow - kFirstRow][kPairs] = {};
+  Pair right_sums[kPairs] = {};
+  for (size_t k = 0; k < offsets.size(); ++k) {
+    const FrameOffset& offset = offsets[k];
+    Pair terms[kPairs];
+    polynomialTerms<kOrder>(offset.u, offset.v, terms);
+    const Pair weight_pair = {weights[k], weights[k]};
     Pair weighted[kPairs];
 #pragma GCC unroll 8
-    for (int p = 0; p < kPairs; ++p) {
-      weighted[p] = weight_pair * terms[p];
-      right_side[p] += weighted[p] * height_pair;
+    for (int p = 0; p < kPairs; ++p) weighted[p] = weight_pair * terms[p];
+    if (kRightSide) {
+      const Pair height_pair = {offset.height, offset.height};
+#pragma GCC unroll 8
+      for (int p = 0; p < kPairs; ++p) right_sums[p] += weighted[p] * height_pair;
     }
 #pragma GCC unroll 15
-    for (int a = 0; a < kTerms; ++a) {
+    for (int a = kFirstRow; a < kEndRow; ++a) {
       const double w = weighted[a / 2][a % 2];
       const Pair weighted_a = {w, w};
 #pragma GCC unroll 8
-      for (int p = 0; p <= a / 2; ++p) rows[a][p] += weighted_a * terms[p];
+      for (int p = 0; p <= a / 2; ++p) sums[a - kFirstRow][p] += weighted_a * terms[p];
     }
   }
+  for (int a = kFirstRow; a < kEndRow; ++a) {
+    for (int p = 0; p <= a / 2; ++p) rows[a][p] = sums[a - kFirstRow][p];
+  }
+  if (kRightSide) {
+    for (int p = 0; p < kPairs; ++p) right_side[p] = right_sums[p];
+  }
+}
+
+// The rows from kFirstRow on, in passes of at most kPassPairs sums each (the first pass also
+// sums the right-hand side).
+template <int kOrder, int kFirstRow>
+void sumRowsFrom(const std::vector<double>& weights, const std::vector<FrameOffset>& offsets,
+                 typename Polynomial<kOrder>::Rows& rows,
+                 typename Polynomial<kOrder>::Terms& right_side) {
+  constexpr int kTerms = Polynomial<kOrder>::kTerms, kPairs = Polynomial<kOrder>::kPairs;
+  constexpr int kPassPairs = 8;
+  constexpr bool kRightSide = kFirstRow == 0;
+  constexpr int kEndRow = [] {
+    int end = kFirstRow, pairs = kRightSide ? kPairs : 0;
+    while (end < kTerms && (end == kFirstRow || pairs + end / 2 + 1 <= kPassPairs))
+      pairs += end / 2 + 1, ++end;
+    return end;
+  }();
+  sumRows<kOrder, kFirstRow, kEndRow, kRightSide>(weights, offsets, rows, right_side);
+  if constexpr (kEndRow < kTerms) sumRowsFrom<kOrder, kEndRow>(weights, offsets, rows, right_side);
+}
+
+// The weighted least-squares polynomial of MLS over the Darboux frame in `result` (PCL's
+// weight exp(-d^2 / r^2)): its normal equations summed neighbour by neighbour, the order fixed
+// at compile time so that the loops over the terms unroll. The weights and frame offsets come
+// first, in a pass of their own (the weights' exp four at a time: expInPlace); the sums then
+// stay in registers. They run on pairs of doubles (SSE2 through GCC's vector extension: each lane
+// does the same multiply and add, so every entry is the same double as one at a time).
+template <int kOrder>
+void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double search_radius,
+                   pcl::MLSResult& result) {
+  constexpr int kTerms = Polynomial<kOrder>::kTerms;
+  // One buffer per thread (MLS runs on several), looked up once per call: in a shared library
+  // each thread_local access is a call.
+  thread_local std::vector<double> thread_weights;
+  thread_local std::vector<FrameOffset> thread_offsets;
+  std::vector<double>& weights = thread_weights;
+  std::vector<FrameOffset>& offsets = thread_offsets;
+  weights.resize(neighbours.size());
+  offsets.resize(neighbours.size());
+  const double squared_radius = search_radius * search_radius;
+  // The frame in locals: `result` may be a thread_local, each access to it a call.
+  const Eigen::Vector3d mean = result.mean, u_axis = result.u_axis, v_axis = result.v_axis,
+                        normal = result.plane_normal;
+  for (size_t k = 0; k < neighbours.size(); ++k) {
+    const Point& p = cloud[neighbours[k]];
+    const Eigen::Vector3d offset(p.x - mean[0], p.y - mean[1], p.z - mean[2]);
+    weights[k] = -offset.dot(offset) / squared_radius;
+    offsets[k] = {offset.dot(u_axis), offset.dot(v_axis), offset.dot(normal)};
+  }
+  expInPlace(weights.data(), weights.size());
+  typename Polynomial<kOrder>::Rows rows;
+  typename Polynomial<kOrder>::Terms right_side;
+  sumRowsFrom<kOrder, 0>(weights, offsets, rows, right_side);
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
   Eigen::Matrix<double, kTerms, 1> right;
   for (int a = 0; a < kTerms; ++a) {
