@@ -125,9 +125,21 @@ struct Candidate {
   float area = 0.0f;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
   // surfaceNoiseOf's result, once computed: the chosen table's is asked twice (hasPointsBelow,
-  // then the result's depth noise). Only the thread that searched the candidates asks it.
+  // then the result's depth noise).
   mutable std::optional<SurfaceNoise> noise;
+  // selectSupport's checks (coverageOf, pointsBelowOf, objectsOf), once computed: findPlanes'
+  // judge may compute them ahead. Each is asked by the judge's thread or, after it has been
+  // joined, by the thread that searched the candidates.
+  mutable std::optional<float> coverage;
+  mutable std::optional<bool> points_below;
+  mutable std::optional<std::vector<int>> objects;
 };
+
+// selectSupport's checks of a candidate, each computed once (defined below).
+float coverageOf(const Cloud& cloud, const Candidate& candidate);
+bool pointsBelowOf(const Cloud& cloud, const Candidate& candidate, const TableParams& params);
+const std::vector<int>& objectsOf(const Cloud& cloud, const Candidate& candidate,
+                                  const TableParams& params);
 
 Plane orient(Plane plane, const NormalConstraint& constraint) {
   const bool flip =
@@ -564,11 +576,14 @@ float surfaceContrast(const Cloud& cloud, const Candidate& candidate, float thre
 // inliers of each are removed before the next is searched. A plane whose refined normal leaves
 // the constraint, or whose inliers are scattered points rather than a surface, is no candidate:
 // `refused`, when given, receives why (for the reason of "no table"). `among`, when given,
-// limits the search to those points (sorted indices).
+// limits the search to those points (sorted indices). check_as_support: selectSupport will
+// choose among the candidates; its checks of each plane higher than those found before it (it
+// checks the highest first) are made ahead, beside the search.
 std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
                                   const NormalConstraint& constraint,
                                   std::vector<std::string>* refused = nullptr,
-                                  const std::vector<int>* among = nullptr) {
+                                  const std::vector<int>* among = nullptr,
+                                  bool check_as_support = false) {
   std::vector<int> remaining;
   remaining.reserve(among ? among->size() : cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
@@ -585,6 +600,7 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
   // the next one is searched among the points left: the search needs only its inliers.
   struct Judged {
     Candidate candidate;
+    bool check_as_support = false;
     std::string refusal;
     std::exception_ptr error;
   };
@@ -607,7 +623,13 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
                       kMinSurfaceContrast);
       }
       judged.refusal = refusal;
-      if (judged.refusal.empty()) buildHull(cloud, candidate);
+      if (!judged.refusal.empty()) return;
+      buildHull(cloud, candidate);
+      // selectSupport's checks, in its order: each only when the one before passed.
+      if (judged.check_as_support && coverageOf(cloud, candidate) >= kMinSupportCoverage &&
+          !pointsBelowOf(cloud, candidate, params)) {
+        objectsOf(cloud, candidate, params);
+      }
     } catch (...) {
       judged.error = std::current_exception();
     }
@@ -633,6 +655,12 @@ std::vector<Candidate> findPlanes(const Cloud& cloud, const TableParams& params,
       break;
     }
     if (candidate.inliers.size() < min_inliers) break;  // later planes are smaller still
+    // Made ahead only on a thread of its own: on one thread they would only be made sooner.
+    judged->check_as_support =
+        check_as_support && judge_aside &&
+        std::all_of(found.begin(), found.end(), [&](const std::unique_ptr<Judged>& before) {
+          return candidate.plane.d < before->candidate.plane.d;
+        });
     if (judge_aside) {
       judges.emplace_back(judge, std::ref(*judged));
     } else {
@@ -769,6 +797,22 @@ bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableP
   return false;
 }
 
+float coverageOf(const Cloud& cloud, const Candidate& candidate) {
+  if (!candidate.coverage) candidate.coverage = hullCoverage(cloud, candidate);
+  return *candidate.coverage;
+}
+
+bool pointsBelowOf(const Cloud& cloud, const Candidate& candidate, const TableParams& params) {
+  if (!candidate.points_below) candidate.points_below = hasPointsBelow(cloud, candidate, params);
+  return *candidate.points_below;
+}
+
+const std::vector<int>& objectsOf(const Cloud& cloud, const Candidate& candidate,
+                                  const TableParams& params) {
+  if (!candidate.objects) objectIndices(cloud, candidate, params, candidate.objects.emplace());
+  return *candidate.objects;
+}
+
 // True when `top` looks like the top face of an object standing on `base`.
 bool isObjectTop(const Candidate& top, const Candidate& base, const TableParams& params) {
   if (top.area >= kObjectTopAreaFraction * base.area) return false;
@@ -795,20 +839,19 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(),
             [&](int a, int b) { return candidates[a].plane.d < candidates[b].plane.d; });
-  std::vector<int> objects;
   for (size_t rank = 0; rank < order.size(); ++rank) {
     const Candidate& candidate = candidates[order[rank]];
     if (candidate.plane.normal.dot(candidates.front().plane.normal) < kParallelCosine) continue;
-    if (hullCoverage(cloud, candidate) < kMinSupportCoverage) continue;
-    if (hasPointsBelow(cloud, candidate, params)) continue;
+    if (coverageOf(cloud, candidate) < kMinSupportCoverage) continue;
+    if (pointsBelowOf(cloud, candidate, params)) continue;
     bool object_top = false;
     for (size_t lower = rank + 1; lower < order.size() && !object_top; ++lower) {
       object_top = isObjectTop(candidate, candidates[order[lower]], params);
     }
     if (object_top) continue;
-    objectIndices(cloud, candidate, params, objects);
+    const std::vector<int>& objects = objectsOf(cloud, candidate, params);
     if (static_cast<int>(objects.size()) >= kMinSupportedPoints) {
-      if (support_objects) support_objects->swap(objects);
+      if (support_objects) *support_objects = objects;
       if (with_objects) *with_objects = true;
       return order[rank];
     }
@@ -820,7 +863,7 @@ int selectSupport(const Cloud& cloud, const std::vector<Candidate>& candidates,
       break;
     }
   }
-  if (support_objects) objectIndices(cloud, candidates[chosen], params, *support_objects);
+  if (support_objects) *support_objects = objectsOf(cloud, candidates[chosen], params);
   return chosen;
 }
 
@@ -843,7 +886,7 @@ bool levelWith(const Candidate& candidate, const Eigen::Vector3f& up) {
 // tilted table.
 int knownHeightRank(const Cloud& cloud, const Candidate& candidate, const TableParams& params,
                     const Eigen::Vector3f& up) {
-  return 2 * levelWith(candidate, up) + !hasPointsBelow(cloud, candidate, params);
+  return 2 * levelWith(candidate, up) + !pointsBelowOf(cloud, candidate, params);
 }
 
 // The knownHeightRank of each candidate within the tolerance of the known camera height, -1 for
@@ -971,7 +1014,8 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
                                     std::cos(degToRad(params_.up_tolerance_deg)), false};
   std::vector<std::string> refused;
   const bool height_known = params_.camera_height > 0.0f;
-  std::vector<Candidate> candidates = findPlanes(*cloud, params_, constraint, &refused);
+  std::vector<Candidate> candidates =
+      findPlanes(*cloud, params_, constraint, &refused, nullptr, !height_known);
   std::vector<int> known_height_ranks;  // beside `candidates` when the camera height is known
   if (height_known) {
     // No level surface hiding nothing at the height (knownHeightRank 3): the level planes of
@@ -1024,7 +1068,7 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
       result.reason = reason + heights + " m below it)";
       return result;
     }
-    objectIndices(*cloud, candidates[chosen], params_, objects);
+    objects = objectsOf(*cloud, candidates[chosen], params_);
   } else {
     chosen = selectSupport(*cloud, candidates, params_, &objects);
     preferHigherLevelSupport(*cloud, params_, constraint.axis, candidates, chosen, objects);

@@ -1,6 +1,7 @@
 // §2.2-2.4 table segmentation: OLS plane refinement, support plane choice on synthetic scenes
 // with a floor, "up" estimation for a tilted camera, and real OSD / PCL scenes with labels.
 #include "tabletop_shapes/core/clustering.h"
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/parameter_table.h"
 #include "tabletop_shapes/core/preprocess.h"
 #include "tabletop_shapes/core/table_segmentation.h"
@@ -15,6 +16,7 @@
 #include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <random>
@@ -523,6 +525,53 @@ TEST(TableSegmenter, MostlyCoveredRenderedTableIsFoundNotTheFloor) {
     EXPECT_LT(angleDeg(result.plane.normal, scene.up), 1.0f);
     EXPECT_GT(result.object_points->size(), 5000u);  // the 24 objects' points above it
   }
+}
+
+// Every float of the plane and the hull, and the object points, as text.
+std::string describe(const TableResult& result) {
+  std::string text = result.reason + "\n";
+  char line[128];
+  std::snprintf(line, sizeof line, "%a %a %a %a inliers %d\n", result.plane.normal.x(),
+                result.plane.normal.y(), result.plane.normal.z(), result.plane.d, result.inliers);
+  text += line;
+  for (const Eigen::Vector3f& corner : result.hull) {
+    std::snprintf(line, sizeof line, "%a %a %a\n", corner.x(), corner.y(), corner.z());
+    text += line;
+  }
+  for (const Point& p : result.object_points->points) {
+    std::snprintf(line, sizeof line, "%a %a %a\n", p.x, p.y, p.z);
+    text += line;
+  }
+  return text;
+}
+
+// With two threads the checks of the support (coverage, points below, object points) are made
+// beside the plane search, for each plane higher than those before it: the same table and
+// object points as on one thread, where they are made when asked. Scenes whose box tops stand
+// higher than the table, found before or after it.
+TEST(TableSegmenter, SameTableAndObjectPointsWithOneAndTwoThreads) {
+  for (const uint32_t seed : {306266018u, 3877104083u, 1765722565u}) {
+    SCOPED_TRACE(seed);
+    sim::RenderedScene scene;
+    setWorkerThreads(1);
+    const TableResult one = coveredSceneTable(seed, false, scene);
+    setWorkerThreads(2);
+    const TableResult two = coveredSceneTable(seed, false, scene);
+    setWorkerThreads(0);
+    ASSERT_TRUE(one.found) << one.reason;
+    EXPECT_GT(one.object_points->size(), 5000u);
+    EXPECT_EQ(describe(two), describe(one));
+  }
+  const SyntheticScene scene = makeScene(true, true);  // table, bigger floor, a box
+  TableParams params;
+  params.up = scene.up;
+  setWorkerThreads(1);
+  const TableResult one = TableSegmenter(params).segment(scene.cloud);
+  setWorkerThreads(2);
+  const TableResult two = TableSegmenter(params).segment(scene.cloud);
+  setWorkerThreads(0);
+  ASSERT_TRUE(one.found) << one.reason;
+  EXPECT_EQ(describe(two), describe(one));
 }
 
 // Covered scene 1765722565: the table shows in front and in the gaps of the first rows only, so
