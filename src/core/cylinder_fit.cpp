@@ -164,6 +164,10 @@ struct RoundWallResiduals {
   void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
                   Eigen::MatrixXd* jacobian) const {
     const Vec2d centre(x[0], x[1]);
+    double* const column[4] = {jacobian ? jacobian->col(0).data() : nullptr,
+                               jacobian ? jacobian->col(1).data() : nullptr,
+                               jacobian ? jacobian->col(2).data() : nullptr,
+                               jacobian && heights ? jacobian->col(3).data() : nullptr};
     for (size_t i = 0; i < points.size(); ++i) {
       const Vec2d offset = points[i] - centre;
       const double distance = offset.norm();
@@ -173,10 +177,10 @@ struct RoundWallResiduals {
       if (jacobian) {
         // At the centre the direction is undefined; any unit vector keeps J finite.
         const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
-        (*jacobian)(i, 0) = -direction.x() * weight;
-        (*jacobian)(i, 1) = -direction.y() * weight;
-        (*jacobian)(i, 2) = -1.0 * weight;
-        if (heights) (*jacobian)(i, 3) = -height * weight;
+        column[0][i] = -direction.x() * weight;
+        column[1][i] = -direction.y() * weight;
+        column[2][i] = -1.0 * weight;
+        if (heights) column[3][i] = -height * weight;
       }
     }
   }
