@@ -267,8 +267,9 @@ bool footprintsOverlap(const Cloud& cluster, const std::vector<uint32_t>& labels
   if (footprint_a.size() > footprint_b.size()) std::swap(footprint_a, footprint_b);
   const std::vector<Eigen::Vector2f> hull = convexHull2d(footprint_b);
   if (hull.size() < 3) return true;  // a degenerate larger part: no footprint to judge by
+  const PolygonEdges edges(hull);
   const auto over = std::count_if(footprint_a.begin(), footprint_a.end(),
-                                  [&](const auto& q) { return insideDistance(hull, q) >= -smear; });
+                                  [&](const auto& q) { return edges.insideDistance(q) >= -smear; });
   return 2 * static_cast<size_t>(over) >= footprint_a.size();
 }
 
@@ -1094,10 +1095,11 @@ bool mayHoldAStack(const Cloud& cluster, const Plane& table, const ClusteringPar
   // Depth noise smears a vertical face sideways, more with range.
   const float smear = sidewaysSmear(centroidOf(cluster).norm(), params);
   const int needed = stackEvidencePoints(params);
+  const PolygonEdges edges(hull);
   int beside = 0;
   for (const auto& p : cluster) {
     if (table.signedDistance(p.getVector3fMap()) < top - kStackStep &&
-        insideDistance(hull, onTable(p)) < -smear && ++beside >= needed) {
+        edges.insideDistance(onTable(p)) < -smear && ++beside >= needed) {
       return true;
     }
   }
@@ -1189,6 +1191,7 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     const std::vector<Eigen::Vector2f> joint = convexHull2d(std::move(both));
     if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
     const float top = std::max(top_a, top_b);
+    const PolygonEdges joint_edges(joint), edges_a(outline_a), edges_b(outline_b);
     // Per footprint cell of the gap: points over the tops and points lower, beyond kTopStep
     // (at their level lie strips of their own top that went with the object on it), counted +1
     // from the surroundings, -1 from the objects themselves.
@@ -1201,8 +1204,8 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
       for (const auto& p : cloud) {
         const float h = table.signedDistance(p.getVector3fMap());
         const Eigen::Vector2f q = onTable(p);
-        if (std::abs(h - top) <= kTopStep || insideDistance(joint, q) < 0 ||
-            insideDistance(outline_a, q) >= -smear || insideDistance(outline_b, q) >= -smear)
+        if (std::abs(h - top) <= kTopStep || joint_edges.insideDistance(q) < 0 ||
+            edges_a.insideDistance(q) >= -smear || edges_b.insideDistance(q) >= -smear)
           continue;
         const Eigen::Vector2f c = q / kFootprintCell;
         GapCell& cell =

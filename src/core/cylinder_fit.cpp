@@ -62,7 +62,7 @@ template <typename Evaluate>
 Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, int n_residuals,
                                    int max_iterations) {
   Eigen::VectorXd residuals(n_residuals), trial_residuals(n_residuals);
-  Eigen::MatrixXd jacobian(n_residuals, x.size());
+  Eigen::MatrixXd jacobian(n_residuals, x.size()), trial_jacobian(n_residuals, x.size());
   evaluate(x, residuals, &jacobian);
   double cost = residuals.squaredNorm();
   double lambda = 1e-3;
@@ -84,12 +84,16 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
       const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
       if (!step.allFinite()) break;
       const Eigen::VectorXd trial = x + step;
-      evaluate(trial, trial_residuals, nullptr);
+      // With its Jacobian: most trials are taken (~4 in 5), and the Jacobian costs less than
+      // evaluating the taken point's residuals again.
+      evaluate(trial, trial_residuals, &trial_jacobian);
       const double trial_cost = trial_residuals.squaredNorm();
       if (std::isfinite(trial_cost) && trial_cost <= cost) {
         const bool converged = step.norm() <= kConvergedStep * (1.0 + x.norm());
         x = trial;
         cost = trial_cost;
+        residuals.swap(trial_residuals);
+        jacobian.swap(trial_jacobian);
         lambda = std::max(lambda * 0.1, 1e-12);
         improved = !converged;
         break;
@@ -97,24 +101,17 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
       lambda *= 10.0;
     }
     if (!improved) break;
-    evaluate(x, residuals, &jacobian);
   }
   return x;
 }
 
-// Per-residual weights (0 or 1 for trimming) applied to the residual and its Jacobian row, so
-// that the trimmed fit reuses the plain least-squares solver.
+// The model with per-residual weights (0 or 1 for trimming) applied to each residual and its
+// Jacobian row, so that the trimmed fit reuses the plain least-squares solver.
 template <typename Residuals>
-struct Weighted {
-  const Residuals& model;
-  const Eigen::VectorXd& weights;
-  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
-                  Eigen::MatrixXd* jacobian) const {
-    model(x, residuals, jacobian);
-    residuals.array() *= weights.array();
-    if (jacobian) jacobian->array().colwise() *= weights.array();  // in place
-  }
-};
+Residuals weighted(Residuals model, const Eigen::VectorXd& weights) {
+  model.weights = &weights;
+  return model;
+}
 
 struct TrimmedSolution {
   Eigen::VectorXd x;
@@ -136,8 +133,8 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
   solution.inliers = Eigen::VectorXd::Ones(n);
   solution.residuals.resize(n);
   for (int round = 0; round <= kTrimRounds; ++round) {
-    solution.x = levenbergMarquardt(Weighted<Residuals>{model, solution.inliers}, solution.x, n,
-                                    max_iterations);
+    solution.x =
+        levenbergMarquardt(weighted(model, solution.inliers), solution.x, n, max_iterations);
     model(solution.x, solution.residuals, nullptr);
     if (round == kTrimRounds) break;
     std::vector<double> magnitudes(n);
@@ -159,22 +156,31 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
 
 // Geometric residuals |p - c| - r(h) of points on a round wall and their Jacobian: without
 // heights a circle, parameters (cx, cy, r); with them a cone, (cx, cy, r0, s), r(h) = r0 + s h.
+// With `weights`, each residual and its Jacobian row times its weight.
 struct RoundWallResiduals {
   const std::vector<Vec2d>& points;
   const std::vector<double>* heights = nullptr;
+  const Eigen::VectorXd* weights = nullptr;
   void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
                   Eigen::MatrixXd* jacobian) const {
     const Vec2d centre(x[0], x[1]);
+    double* const column[4] = {jacobian ? jacobian->col(0).data() : nullptr,
+                               jacobian ? jacobian->col(1).data() : nullptr,
+                               jacobian ? jacobian->col(2).data() : nullptr,
+                               jacobian && heights ? jacobian->col(3).data() : nullptr};
     for (size_t i = 0; i < points.size(); ++i) {
       const Vec2d offset = points[i] - centre;
       const double distance = offset.norm();
       const double height = heights ? (*heights)[i] : 0.0;
-      residuals[i] = distance - (heights ? x[2] + x[3] * height : x[2]);
+      const double weight = weights ? (*weights)[i] : 1.0;
+      residuals[i] = (distance - (heights ? x[2] + x[3] * height : x[2])) * weight;
       if (jacobian) {
         // At the centre the direction is undefined; any unit vector keeps J finite.
         const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
-        jacobian->row(i).head<3>() << -direction.x(), -direction.y(), -1.0;
-        if (heights) (*jacobian)(i, 3) = -height;
+        column[0][i] = -direction.x() * weight;
+        column[1][i] = -direction.y() * weight;
+        column[2][i] = -1.0 * weight;
+        if (heights) column[3][i] = -height * weight;
       }
     }
   }
@@ -428,7 +434,7 @@ ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder, i
   solution.points = trimmed.inlier_count;
   Eigen::VectorXd residuals(n);
   Eigen::MatrixXd jacobian(n, 4);
-  Weighted<RoundWallResiduals>{residual_model, trimmed.inliers}(trimmed.x, residuals, &jacobian);
+  weighted(residual_model, trimmed.inliers)(trimmed.x, residuals, &jacobian);
   // Covariance of the estimate on the inliers: sigma^2 (J^T J)^-1, sigma^2 = SSR / (m - 4).
   // Residuals of neighbouring points are correlated (voxel grid, MLS smoothing), so this is
   // optimistic; the decision adds ConeParams::min_slope on top.

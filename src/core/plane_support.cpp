@@ -5,32 +5,7 @@
 #include <cstring>
 #include <limits>
 
-#ifdef __SSE__
-#include <xmmintrin.h>
-#endif
-
 namespace tabletop_shapes {
-
-namespace {
-Float4 broadcast(float value) { return Float4{} + value; }
-Float4 magnitude(Float4 value) { return (Float4)((Int4)value & 0x7fffffff); }
-// Bit i set where lane i of the comparison result `mask` is true (-1).
-unsigned lanesOf(Int4 mask) {
-#ifdef __SSE__
-  return static_cast<unsigned>(_mm_movemask_ps((__m128)mask));  // the lanes' sign bits
-#else
-  return (mask[0] & 1u) | (mask[1] & 2u) | (mask[2] & 4u) | (mask[3] & 8u);
-#endif
-}
-Float4 squareRoot(Float4 value) {
-#ifdef __SSE__
-  return (Float4)_mm_sqrt_ps((__m128)value);  // correctly rounded, as std::sqrt
-#else
-  for (int lane = 0; lane < 4; ++lane) value[lane] = std::sqrt(value[lane]);
-  return value;
-#endif
-}
-}  // namespace
 
 Float4 acosOfHalfToOne(Float4 x) {
   // fdlibm's e_acosf.c, branch x >= 0.5: acos(x) = 2 asin(sqrt((1 - x) / 2)), the asin from a
@@ -86,25 +61,50 @@ int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance
     counts -= inlier;
   }
   const int count = counts[0] + counts[1] + counts[2] + counts[3];
-  const bool sum_angles = angle_sum && count >= min_count;
-  if (!support && !sum_angles) return count;
-  const Float4 one = broadcast(1.0f);
-  for (size_t k = 0; k < inlier_lanes_.size(); ++k) {
-    if (inlier_lanes_[k] == 0) continue;
-    // std::min(cosine, 1.0f) per lane (NaN stays NaN), and the acos of all four at once where
-    // they lie in [0.5, 1); acos(1) = 0 and the rare others one at a time.
-    const Float4 cosine = one < cosine_[k] ? one : cosine_[k];
-    const Float4 angle = sum_angles ? acosOfHalfToOne(cosine) : Float4{};
-    for (unsigned lanes = inlier_lanes_[k]; lanes != 0; lanes &= lanes - 1) {
-      const int lane = __builtin_ctz(lanes);
-      if (support) support->push_back(indices_[4 * k + lane]);
-      if (sum_angles) {
-        const float c = cosine[lane];
-        *angle_sum += c >= 0.5f && c < 1.0f ? angle[lane] : std::acos(c);
+  if (support) {
+    for (size_t k = 0; k < inlier_lanes_.size(); ++k) {
+      for (unsigned lanes = inlier_lanes_[k]; lanes != 0; lanes &= lanes - 1) {
+        support->push_back(indices_[4 * k + __builtin_ctz(lanes)]);
       }
     }
   }
+  if (angle_sum && count >= min_count) *angle_sum += sumOfInlierAngles();
   return count;
+}
+
+double PlaneSupport::sumOfInlierAngles() const {
+  // Each angle is a float: 0 or at least acos(1 - 2^-24) > 2^-12, so a multiple of 2^-35, and
+  // at most pi < 4. Their sum is exact in a double (53 bits) below 2^18, i.e. for up to 2^16
+  // points, and then the same in any order; beyond, it is summed in the points' order.
+  const bool exact_in_any_order = 4 * inlier_lanes_.size() <= (1u << 16);
+  const Float4 one = broadcast(1.0f), half = broadcast(0.5f);
+  const Int4 lane_bits = {1, 2, 4, 8};
+  Double2 low_lanes = {}, high_lanes = {};
+  double sum = 0.0;
+  for (size_t k = 0; k < inlier_lanes_.size(); ++k) {
+    const unsigned lanes = inlier_lanes_[k];
+    if (lanes == 0) continue;
+    // std::min(cosine, 1.0f) per lane (NaN stays NaN), and the acos of all four at once where
+    // they lie in [0.5, 1); acos(1) = 0 and the rare others one at a time.
+    const Float4 cosine = one < cosine_[k] ? one : cosine_[k];
+    const Float4 angle = acosOfHalfToOne(cosine);
+    if (exact_in_any_order) {
+      const Int4 inlier = ((Int4{} + static_cast<int>(lanes)) & lane_bits) != 0;
+      const Int4 vector_lanes = inlier & (cosine >= half) & (cosine < one);
+      const Float4 kept = (Float4)((Int4)angle & vector_lanes);
+      low_lanes += Double2{kept[0], kept[1]};
+      high_lanes += Double2{kept[2], kept[3]};
+      for (unsigned rest = lanes & ~lanesOf(vector_lanes); rest != 0; rest &= rest - 1) {
+        sum += std::acos(cosine[__builtin_ctz(rest)]);  // 0 for a cosine of 1
+      }
+      continue;
+    }
+    for (unsigned rest = lanes; rest != 0; rest &= rest - 1) {
+      const float c = cosine[__builtin_ctz(rest)];
+      sum += c >= 0.5f && c < 1.0f ? angle[__builtin_ctz(rest)] : std::acos(c);
+    }
+  }
+  return sum + ((low_lanes[0] + low_lanes[1]) + (high_lanes[0] + high_lanes[1]));
 }
 
 PointsNearPlane::PointsNearPlane(const Cloud& cloud, const std::vector<int>& indices)

@@ -1,9 +1,11 @@
 #include "tabletop_shapes/core/round_lid.h"
 
 #include "tabletop_shapes/core/cylinder_fit.h"
+#include "tabletop_shapes/core/float4.h"
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace tabletop_shapes {
 namespace {
@@ -47,11 +49,44 @@ Circle circleThrough(const Eigen::Vector2f& a, const Eigen::Vector2f& b, const E
   return circle;
 }
 
+bool onCircle(const Eigen::Vector2f& p, const Circle& circle) {
+  return std::abs((p - circle.center).norm() - circle.radius) <= kOutlineBand;
+}
+
 int pointsOnCircle(const std::vector<Eigen::Vector2f>& points, const Circle& circle) {
-  return static_cast<int>(
-      std::count_if(points.begin(), points.end(), [&](const Eigen::Vector2f& p) {
-        return std::abs((p - circle.center).norm() - circle.radius) <= kOutlineBand;
-      }));
+  return static_cast<int>(std::count_if(
+      points.begin(), points.end(), [&](const Eigen::Vector2f& p) { return onCircle(p, circle); }));
+}
+
+// Points in blocks of four, one array per coordinate (the padding NaN: on no circle). The circle
+// search tests up to 7140 circles (through 3 of up to 36 outline points) against the same points.
+struct PointBlocks {
+  explicit PointBlocks(const std::vector<Eigen::Vector2f>& points)
+      : x((points.size() + 3) / 4, broadcast(std::numeric_limits<float>::quiet_NaN())),
+        y(x),
+        count(static_cast<int>(points.size())) {
+    for (size_t i = 0; i < points.size(); ++i) {
+      x[i / 4][i % 4] = points[i].x();
+      y[i / 4][i % 4] = points[i].y();
+    }
+  }
+  std::vector<Float4> x, y;
+  int count;
+};
+
+// pointsOnCircle when it exceeds `least`, else a count of at most `least`: the search keeps
+// only circles better than the best so far, so the count stops once the points left cannot take
+// it beyond. Each lane does onCircle's float operations ((p - c).norm(): dx dx + dy dy).
+int pointsOnCircleAbove(const PointBlocks& points, const Circle& circle, int least) {
+  static constexpr int kLanesSet[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+  const Float4 cx = broadcast(circle.center.x()), cy = broadcast(circle.center.y());
+  const Float4 radius = broadcast(circle.radius), band = broadcast(kOutlineBand);
+  int on = 0, left = points.count;
+  for (size_t k = 0; k < points.x.size() && on + left > least; ++k, left -= 4) {
+    const Float4 dx = points.x[k] - cx, dy = points.y[k] - cy;
+    on += kLanesSet[lanesOf(magnitude(squareRoot(dx * dx + dy * dy) - radius) <= band)];
+  }
+  return on;
 }
 
 // Distance of `p` to the outline of the rectangle of half sides `half` centred at the origin.
@@ -113,12 +148,13 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
   // Every circle through three outline points; the one most of them lie on (deterministic).
   Circle best;
   int best_on = 0;
+  const PointBlocks blocks(points);
   for (size_t i = 0; i < points.size(); ++i) {
     for (size_t j = i + 1; j < points.size(); ++j) {
       for (size_t k = j + 1; k < points.size(); ++k) {
         const Circle circle = circleThrough(points[i], points[j], points[k]);
         if (!circle.ok || circle.radius < min_radius || circle.radius > max_radius) continue;
-        const int on = pointsOnCircle(points, circle);
+        const int on = pointsOnCircleAbove(blocks, circle, best_on);
         if (on > best_on) {
           best = circle;
           best_on = on;
@@ -129,7 +165,7 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
   if (!best.ok) return outline;
   std::vector<Eigen::Vector2f> inliers;
   for (const Eigen::Vector2f& p : points) {
-    if (std::abs((p - best.center).norm() - best.radius) <= kOutlineBand) inliers.push_back(p);
+    if (onCircle(p, best)) inliers.push_back(p);
   }
   const Circle refined = refineCircleGeometric(inliers, best, kRefineIterations);
   if (refined.ok && refined.radius >= min_radius && refined.radius <= max_radius &&

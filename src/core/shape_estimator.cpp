@@ -507,14 +507,17 @@ ShapeFit rejectOverreach(ShapeFit fit, const Cloud& cluster, const Plane& table,
 // to 0.5-12 mm on real OSD scenes (a mug with its handle).
 constexpr float kMaxResidualFraction = 0.2f;
 
+// `residual`, when given, receives the visibleSurfaceResidual of a fit left ok, for the model
+// choice (it costs a distance to the solid per point).
 ShapeFit rejectUnexplained(ShapeFit fit, const NormalCloud& normals, const Cloud& cluster,
-                           const Plane& table) {
+                           const Plane& table, float* residual_out = nullptr) {
   if (!fit.ok) return fit;
   const Eigen::Vector3f up = table.normal.normalized();
   const Eigen::Vector3f e1 = up.unitOrthogonal(), e2 = up.cross(e1);
   const Eigen::Vector2f x = extentAlong(cluster, e1), y = extentAlong(cluster, e2);
   const float footprint = std::max(x[1] - x[0], y[1] - y[0]);
   const float residual = visibleSurfaceResidual(fit, normals);
+  if (residual_out) *residual_out = residual;
   if (residual > kMaxResidualFraction * footprint) {
     fit.ok = false;
     fit.reason = "its points lie " + formatMetres(residual) + " m RMS off the " +
@@ -792,28 +795,19 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   estimateNormalsMLS(cluster, params.normals, normals);
   if (normals.size() < 10) return fallback(*cluster, table, "too few points with a normal");
 
-  const Prediction prediction = predictShape(normals, params.predictor);
-  auto checked = [&](const ShapeFit& model) {
+  auto checked = [&](const ShapeFit& model, float* residual = nullptr) {
     ShapeFit fit = checkSupport(model, normals.size());
     if (params.edge_bleed_px > 0.0f)
       fit = narrowToPoints(fit, *cluster, smeared, smear, table, params.max_overreach, cuts);
     fit = rejectOverreach(fit, *cluster, table, params.max_overreach, params.cylinder.top_margin,
                           cuts);
     fit = rejectFlatArc(fit, *cluster, params.cylinder.top_margin, cuts);
-    return rejectUnexplained(fit, normals, *cluster, table);
+    return rejectUnexplained(fit, normals, *cluster, table, residual);
   };
   // A box's hidden ends lie as far outside its silhouette as a thin object's sides
   // (EdgeSmear::side): a box seen from straight above by a RealSense at 0.46 m, only its top
   // face in view, came out 46 mm across for 38 (fitCube).
   const SilhouetteSmear box_smear{smear.side, cuts.directions};
-  auto fitAs = [&](ShapeType type) {
-    return checked(type == ShapeType::Cube
-                       ? fitCube(normals, table, params.cube, box_smear)
-                       : fitRoundObject(normals, table, params.cylinder, params.cone));
-  };
-  const ShapeType first =
-      prediction.guess == ShapeType::Cube ? ShapeType::Cube : ShapeType::Cylinder;
-  const ShapeType second = first == ShapeType::Cube ? ShapeType::Cylinder : ShapeType::Cube;
 
   // Both models are fitted, as no residual of the guess alone tells a wrong guess: on the
   // rendered benchmark, right models follow their clusters to 0.15-1.5 mm, wrong ones from
@@ -822,11 +816,13 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   // the reasons of a failure.
   // Beyond the paper, a cylinder lying on its side competes too: real cans and tins lie on the
   // table or stand on their rim (OSD learn30-43), and a box around them was all we had.
-  const ShapeFit guessed = fitAs(first);
-  const ShapeFit other = fitAs(second);
-  const ShapeFit lying = checked(fitLyingCylinder(normals, table, params.cylinder));
-  const ShapeFit* best = nullptr;
-  float best_residual = std::numeric_limits<float>::infinity();
+  // Residuals of the fits left ok (visibleSurfaceResidual).
+  float box_residual = 0.0f, round_residual = 0.0f, lying_residual = 0.0f;
+  const ShapeFit box_fit = checked(fitCube(normals, table, params.cube, box_smear), &box_residual);
+  const ShapeFit round_fit =
+      checked(fitRoundObject(normals, table, params.cylinder, params.cone), &round_residual);
+  const ShapeFit lying =
+      checked(fitLyingCylinder(normals, table, params.cylinder), &lying_residual);
   // A thin object's circle is its median width (narrowToPoints), and its points keep some
   // smear beside it: the residuals cannot tell its round solid from a box around the smear
   // (the box won on 4 of 18 rendered RealSense markers), and the predictor's guess decides.
@@ -836,10 +832,26 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   Eigen::Vector2f thin_sides;
   const bool thin = sight.norm() > 1e-6f &&
                     thinObjectSides(smeared, up, up.cross(sight.normalized()), smear, thin_sides);
+  // The guess (§3.1) comes first: it is the thin object's model, wins an exact tie of the box's
+  // and the round residual (or one that is not a number), and gives the first reason of a
+  // failure. Elsewhere the residuals alone choose, so its k-nearest search over the cluster is
+  // made only where it decides (it cost half the box fit's instructions).
+  const bool guess_decides = (thin && (box_fit.ok || round_fit.ok)) ||
+                             (!box_fit.ok && !round_fit.ok && !lying.ok) ||
+                             (box_fit.ok && round_fit.ok && !(box_residual < round_residual) &&
+                              !(round_residual < box_residual));
+  const bool box_first =
+      guess_decides && predictShape(normals, params.predictor).guess == ShapeType::Cube;
+  const ShapeFit& guessed = box_first ? box_fit : round_fit;
+  const ShapeFit& other = box_first ? round_fit : box_fit;
   if (thin && guessed.ok) return raiseTopToCap(guessed, normals);
+  const ShapeFit* best = nullptr;
+  float best_residual = std::numeric_limits<float>::infinity();
   for (const ShapeFit* fit : {&guessed, &other, &lying}) {
     if (!fit->ok) continue;
-    const float residual = visibleSurfaceResidual(*fit, normals);
+    const float residual = fit == &box_fit     ? box_residual
+                           : fit == &round_fit ? round_residual
+                                               : lying_residual;
     if (!best || residual < best_residual) {
       best = fit;
       best_residual = residual;
@@ -855,12 +867,12 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   // residuals 2.2-17 times theirs; a lying can's box has empty top corners too, but the
   // upright cylinder through it, r 50 mm in a box 73 mm wide, does not stand inside it.)
   if (best && best->type == ShapeType::Cube) {
-    const ShapeFit& round = best == &guessed ? other : guessed;
+    const ShapeFit& round = round_fit;
     const float round_radius = std::max({round.radius, round.radius_bottom, round.radius_top});
     if (round.ok && round.type != ShapeType::Cube && !isLying(round, up) &&
         2.0f * round_radius <=
             std::min(best->dimensions.x(), best->dimensions.y()) + params.max_overreach &&
-        visibleSurfaceResidual(round, normals) < kRoundResidualFactor * best_residual &&
+        round_residual < kRoundResidualFactor * best_residual &&
         emptyTopCorners(*best, *cluster, cuts) >= kMinEmptyCorners) {
       return round;
     }
@@ -895,8 +907,10 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   if (best) return raiseTopToCap(*best, normals);
 
   std::ostringstream reason;
-  reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
-         << shapeTypeName(second) << ": " << other.reason << "; lying cylinder: " << lying.reason;
+  reason << "no model fits: " << shapeTypeName(box_first ? ShapeType::Cube : ShapeType::Cylinder)
+         << ": " << guessed.reason << "; "
+         << shapeTypeName(box_first ? ShapeType::Cylinder : ShapeType::Cube) << ": " << other.reason
+         << "; lying cylinder: " << lying.reason;
   return fallback(*cluster, table, reason.str());
 }
 

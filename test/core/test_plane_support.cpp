@@ -82,13 +82,14 @@ TEST(PlaneSupport, VectorAcosEqualsStdAcosOnEveryFloatFromHalfToOne) {
 
 // The same inliers and the same angle sum, to the bit, as the plain loop with Eigen's dot
 // products, on a noisy box corner and tilted planes through it (odd sizes: partial blocks);
-// with a cosine threshold below 0.5 too (angles the vector acos leaves to std::acos).
-void expectPlainLoopResults(float cos_threshold) {
+// with a cosine threshold below 0.5 too (angles the vector acos leaves to std::acos), and over
+// 2^16 points (angles summed in the points' order), with and without the support collected.
+void expectPlainLoopResults(float cos_threshold, int cloud_points = 1003, int trials = 50) {
   std::mt19937 rng(7);
   std::normal_distribution<float> noise(0.0f, 0.003f);
   std::uniform_real_distribution<float> coordinate(-0.1f, 0.1f);
   NormalCloud cloud;
-  for (int i = 0; i < 1003; ++i) {
+  for (int i = 0; i < cloud_points; ++i) {
     const int face = i % 3;
     Eigen::Vector3f position(coordinate(rng), coordinate(rng), coordinate(rng));
     position[face] = 0.1f + noise(rng);
@@ -97,9 +98,9 @@ void expectPlainLoopResults(float cos_threshold) {
     cloud.push_back(pointWithNormal(position, normal.normalized()));
   }
   std::vector<int> indices;
-  for (int i = 1002; i >= 0; i -= 2) indices.push_back(i);
+  for (int i = static_cast<int>(cloud.size()) - 1; i >= 0; i -= 2) indices.push_back(i);
   PlaneSupport support(cloud, indices);
-  for (int trial = 0; trial < 50; ++trial) {
+  for (int trial = 0; trial < trials; ++trial) {
     const Eigen::Vector3f normal =
         (Eigen::Vector3f::Unit(trial % 3) +
          0.2f * Eigen::Vector3f(noise(rng), noise(rng), noise(rng)) / 0.003f)
@@ -121,6 +122,9 @@ void expectPlainLoopResults(float cos_threshold) {
     EXPECT_EQ(count, static_cast<int>(expected_inliers.size()));
     EXPECT_EQ(inliers, expected_inliers);
     EXPECT_EQ(angle_sum, expected_sum);
+    double angles_only = 0.0;
+    EXPECT_EQ(support.collect(normal, d, kDistance, cos_threshold, nullptr, &angles_only), count);
+    EXPECT_EQ(angles_only, expected_sum);
   }
 }
 
@@ -128,6 +132,10 @@ TEST(PlaneSupport, MatchesThePlainLoopBitForBit) { expectPlainLoopResults(kCosTh
 
 TEST(PlaneSupport, MatchesThePlainLoopBitForBitWithWideAngles) {
   expectPlainLoopResults(std::cos(static_cast<float>(kPi * 0.45)));  // 81 degrees
+}
+
+TEST(PlaneSupport, MatchesThePlainLoopBitForBitOnManyPoints) {
+  expectPlainLoopResults(kCosThreshold, 140001, 4);  // every second: 70001 points
 }
 
 TEST(PointsNearPlane, KeepsThePointsWithinTheDistanceInTheOrderGiven) {

@@ -5,14 +5,12 @@
 // the plain loop.
 #pragma once
 
+#include "tabletop_shapes/core/float4.h"
 #include "tabletop_shapes/core/normals.h"
 
 #include <vector>
 
 namespace tabletop_shapes {
-
-using Float4 = float __attribute__((vector_size(16)));
-using Int4 = int __attribute__((vector_size(16)));
 
 // Three coordinates of points in blocks of four; the padding of the last block lies far from
 // every plane through the data, with a zero vector where the vectors are normals.
@@ -39,14 +37,16 @@ class PlaneSupport {
   // Number of inliers of the plane normal . p + d = 0: distance below `distance_threshold` AND
   // point normal within acos(`cos_threshold`) of the plane normal (either sign). `support`, when
   // given, receives their indices into the cloud (in the order given); `angle_sum`, when given
-  // and at least `min_count` are found, gets the angles between their normals and the plane's
-  // added, in the same order. The same numbers, to the bit, as the plain loop over the points
-  // (normal.dot(p) + d, |normal.dot(point normal)|, acos).
+  // and at least `min_count` are found, gets the sum of the angles between their normals and the
+  // plane's added. The same numbers, to the bit, as the plain loop over the points
+  // (normal.dot(p) + d, |normal.dot(point normal)|, acos) summing into a zero `angle_sum`.
   int collect(const Eigen::Vector3f& normal, float d, float distance_threshold, float cos_threshold,
               std::vector<int>* support, double* angle_sum, int min_count = 0);
 
  private:
   static constexpr float kFarAway = 1e30f;
+  // The sum of the last plane's inliers' angles (collect's `angle_sum`).
+  double sumOfInlierAngles() const;
   std::vector<int> indices_;
   VectorBlocks points_, normals_;
   // Per block, of the last plane: which points are inliers (bit i: lane i) and their |cosine|.
