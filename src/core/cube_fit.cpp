@@ -43,13 +43,10 @@ struct Face {
   int side = 0;   // +1: the face bounds the box at the positive end of its axis, -1: negative
 };
 
-// Total least squares plane of the support (eigenvector of the smallest eigenvalue of the
-// scatter): the OLS of eq. 4-8 on the orthogonal distance, free of its d = 0 special case.
-// Keeps the sign of `normal`. Returns false for fewer than 3 or collinear points.
-bool fitPlane(const NormalCloud& cloud, const std::vector<int>& indices, Eigen::Vector3f& normal,
-              float& d) {
-  if (indices.size() < 3) return false;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+// Scatter matrix of the points `indices` (not empty) of `cloud` about their `mean`.
+Eigen::Matrix3d scatterOf(const NormalCloud& cloud, const std::vector<int>& indices,
+                          Eigen::Vector3d& mean) {
+  mean = Eigen::Vector3d::Zero();
   for (int i : indices) mean += cloud[i].getVector3fMap().cast<double>();
   mean /= static_cast<double>(indices.size());
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
@@ -57,6 +54,17 @@ bool fitPlane(const NormalCloud& cloud, const std::vector<int>& indices, Eigen::
     const Eigen::Vector3d q = cloud[i].getVector3fMap().cast<double>() - mean;
     scatter += q * q.transpose();
   }
+  return scatter;
+}
+
+// Total least squares plane of the support (eigenvector of the smallest eigenvalue of the
+// scatter): the OLS of eq. 4-8 on the orthogonal distance, free of its d = 0 special case.
+// Keeps the sign of `normal`. Returns false for fewer than 3 or collinear points.
+bool fitPlane(const NormalCloud& cloud, const std::vector<int>& indices, Eigen::Vector3f& normal,
+              float& d) {
+  if (indices.size() < 3) return false;
+  Eigen::Vector3d mean;
+  const Eigen::Matrix3d scatter = scatterOf(cloud, indices, mean);
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   if (solver.info() != Eigen::Success) return false;
   const Eigen::Vector3d eigenvalues = solver.eigenvalues();                    // ascending
@@ -104,14 +112,8 @@ constexpr double kMinFaceSpread = 0.004;  // [m]
 // of their plane (the scatter's two larger principal axes).
 bool spreadsAsAFace(const NormalCloud& cloud, const std::vector<int>& indices) {
   if (indices.size() < 3) return false;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (int i : indices) mean += cloud[i].getVector3fMap().cast<double>();
-  mean /= static_cast<double>(indices.size());
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (int i : indices) {
-    const Eigen::Vector3d q = cloud[i].getVector3fMap().cast<double>() - mean;
-    scatter += q * q.transpose();
-  }
+  Eigen::Vector3d mean;
+  const Eigen::Matrix3d scatter = scatterOf(cloud, indices, mean);
   const Eigen::Vector3d eigenvalues =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter, Eigen::EigenvaluesOnly).eigenvalues();
   return eigenvalues(1) / static_cast<double>(indices.size()) >= kMinFaceSpread * kMinFaceSpread;
