@@ -805,6 +805,12 @@ NormalCloud withoutSmearAboveTop(const NormalCloud& points, float band, float de
   return kept;
 }
 
+// True when the image's top border cut the object (nothing was smeared above it there).
+bool cutAtImageTop(const Cuts& cuts) {
+  return std::any_of(cuts.directions.begin(), cuts.directions.end(),
+                     [](const Eigen::Vector3f& d) { return d.y() < -kAlong; });
+}
+
 // A lying cylinder chosen for a cluster with the circle refitted (`fitChecked`) without the smear
 // above its top in the image (withoutSmearAboveTop, EdgeSmear::side): an active-stereo camera
 // smears the can's upper outline over the background behind it, at the can's depth, and those
@@ -817,9 +823,7 @@ template <typename FitChecked>
 ShapeFit lyingWithoutTopSmear(const ShapeFit& lying, const NormalCloud& normals,
                               const EdgeSmear& smear, float depth, const Cuts& cuts,
                               const FitChecked& fitChecked, const Eigen::Vector3f& table_up) {
-  const bool cut_top = std::any_of(cuts.directions.begin(), cuts.directions.end(),
-                                   [](const Eigen::Vector3f& d) { return d.y() < -kAlong; });
-  if (!(smear.side > 0.0f) || !(depth > 0.0f) || cut_top) return lying;
+  if (!(smear.side > 0.0f) || !(depth > 0.0f) || cutAtImageTop(cuts)) return lying;
   ShapeFit refit = fitChecked(withoutSmearAboveTop(normals, smear.side, depth));
   if (!refit.ok) return lying;
   // Its length is the chosen one's, less the smear's part along the axis at its far end (the end
@@ -839,6 +843,27 @@ ShapeFit lyingWithoutTopSmear(const ShapeFit& lying, const NormalCloud& normals,
   refit.height -= inset;
   refit.center -= 0.5f * inset * far_end;
   return refit;
+}
+
+// An upright round solid chosen for a cluster, its top lowered to that of the round solid refitted
+// (`fitRound`) without the smear above the object's top in the image (withoutSmearAboveTop,
+// EdgeSmear::side): an active-stereo camera smears the far rim or lid over the background behind
+// it, at its depth, and on a steep view those points stand over the top (RealSense renders: mugs
+// 97-100 mm for 95, the rim's smear a group of its own over the top, which topHeight follows).
+// Only the height is taken from the refit, after the model choice, and only downwards; not where
+// the image border cut the top. `upright` itself otherwise.
+template <typename FitRound>
+ShapeFit uprightWithoutTopSmear(const ShapeFit& upright, const NormalCloud& normals,
+                                const EdgeSmear& smear, float depth, const Cuts& cuts,
+                                const FitRound& fitRound) {
+  if (!(smear.side > 0.0f) || !(depth > 0.0f) || cutAtImageTop(cuts) || !cuts.top_only.empty())
+    return upright;
+  const ShapeFit refit = fitRound(withoutSmearAboveTop(normals, smear.side, depth));
+  if (!refit.ok || !(refit.height < upright.height)) return upright;
+  ShapeFit lowered = upright;
+  lowered.center -= 0.5f * (upright.height - refit.height) * upright.axis();
+  lowered.height = refit.height;
+  return lowered;
 }
 
 // The solid of a cluster of at least 10 points (ShapeEstimator::estimate): `cluster` without
@@ -950,6 +975,12 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
         up);
   }
   // The models were compared at the box's fitted top; a cap raises it after the choice.
+  if (best && best->type != ShapeType::Cube) {
+    return uprightWithoutTopSmear(
+        *best, normals, smear, centroid.z(), cuts, [&](const NormalCloud& points) {
+          return fitRoundObject(points, table, params.cylinder, params.cone);
+        });
+  }
   if (best) return raiseTopToCap(*best, normals);
 
   std::ostringstream reason;
