@@ -638,6 +638,41 @@ TEST(ShapeEstimator, MarkerWhoseTopLeavesTheImageKeepsItsWidth) {
   EXPECT_FALSE(whole_fit.truncated);
 }
 
+TEST(ShapeEstimator, BowlWhoseRimLeavesTheImageIsCutAcross) {
+  // A bowl (foot r 40, rim r 75 mm, 65 mm high) beside the image's side: only its rim, in the
+  // upper half of its height, reaches the border, but the rim is its widest part, so the border
+  // cuts it across, unlike a marker's top (MarkerWhoseTopLeavesTheImageKeepsItsWidth). Its radius
+  // is a lower bound, its height is not.
+  const float r_bottom = 0.04f, r_top = 0.075f, height = 0.065f;
+  synthetic::Sampler sampler = synthetic::voxelGridSampler();
+  sampler.camera = {0.0f, -0.45f, 0.55f};
+  const ViewBounds whole = wholeImage(385.0f, 0.8f, 0.6f, sampler.spacing);
+  const CameraView view =
+      inOpticalFrame(synthetic::bowl(r_bottom, r_top, height, 0.004f, {0.2f, 0.05f}, sampler),
+                     sampler.camera, Eigen::Vector3f(0, 0, 0.03f));
+  // The border 1 cm inside the rim's outer side, beyond the foot's.
+  const float outward = view.cloud->points[0].x > 0.0f ? 1.0f : -1.0f;
+  float rim_side = 0.0f, foot_side = 0.0f;
+  for (const auto& p : view.cloud->points) {
+    const float h = view.table.normal.dot(p.getVector3fMap()) + view.table.d;
+    float& side = h > 0.5f * height ? rim_side : foot_side;
+    side = std::max(side, outward * p.x / p.z);
+  }
+  ASSERT_GT(rim_side - 0.01f / 0.7f, foot_side);
+  ViewBounds bounds = whole;
+  (outward > 0.0f ? bounds.max_tan_x : bounds.min_tan_x) = outward * (rim_side - 0.01f / 0.7f);
+  auto cut = std::make_shared<Cloud>();
+  for (const auto& p : view.cloud->points) {
+    if (outward * p.x / p.z <= rim_side - 0.01f / 0.7f) cut->push_back(p);
+  }
+  const ShapeFit fit = ShapeEstimator().estimate(cut, view.table, &bounds);
+  printFit("bowl whose rim leaves the image", fit);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  EXPECT_TRUE(fit.truncated);
+  EXPECT_TRUE(fit.lower_bound[0] && fit.lower_bound[1]) << "its radius";
+  EXPECT_FALSE(fit.lower_bound[2]) << "its height";
+}
+
 TEST(ShapeEstimator, WholeObjectsInViewAreNotTruncated) {
   synthetic::Sampler sampler = synthetic::voxelGridSampler();
   const CameraView view = inOpticalFrame(synthetic::box(kMilkTea, {0.0f, 0.0f}, 0.3f, sampler),
