@@ -144,6 +144,49 @@ TEST(CubeFit, RepeatableAcrossNoiseSeeds) {
   }
 }
 
+TEST(CubeFit, SideFaceSeenAsAStripAtTheBorderGivesNoYaw) {
+  // A box (89 x 38 x 175 mm) cut by the image's bottom border on a steep view: its top face is in
+  // view, of its end face only a strip along the border, rising diagonally across it (a RealSense
+  // border box at 0.36 m: 34 points 3.2 mm RMS across the strip). The strip's plane is free to
+  // tilt about it: on that box its normal turned the yaw 7 degrees, 47 mm thick for 38. The strip
+  // is no face (faces_seen 1; 2 before, here without the large turn: its points are more and
+  // less noisy than the rendered ones), and the top face's outline gives the yaw and extents.
+  const Eigen::Vector3f size(0.089f, 0.038f, 0.175f);
+  const float yaw = 0.5f;
+  for (unsigned seed : {1u, 2u, 3u}) {
+    synthetic::Sampler sampler = synthetic::voxelGridSampler();
+    sampler.noise_sigma = 0.0015f;
+    sampler.seed = seed;
+    sampler.camera = {0.25f, 0.05f, 0.55f};  // near the +x end face, high above
+    CloudPtr box = synthetic::box(size, {0.0f, 0.0f}, yaw, sampler);
+    const Eigen::Vector3f along_end(-std::sin(yaw), std::cos(yaw), 0.0f);  // the end face's width
+    auto cut = std::make_shared<Cloud>();
+    for (const auto& p : box->points) {
+      const Eigen::Vector3f q = p.getVector3fMap();
+      const float height = q.z();
+      const float diagonal = 0.14f + 0.5f * along_end.dot(q);  // the border's trace on the face
+      if (height > size.z() - 0.004f || std::abs(height - diagonal) < 0.004f) cut->push_back(p);
+    }
+    const Eigen::Isometry3f camera_from_table =
+        cameraFromTable(sampler.camera, Eigen::Vector3f(0.0f, 0.0f, size.z()));
+    synthetic::transformCloud(camera_from_table, *cut);
+    const Plane table = synthetic::transformPlane(camera_from_table, synthetic::tablePlane());
+    NormalCloud object;
+    estimateNormalsMLS(cut, NormalParams{}, object);
+    // Cut by the image's bottom border (+y in the optical frame); no edge smear.
+    const SilhouetteSmear cut_at_bottom{0.0f, {Eigen::Vector3f::UnitY()}};
+    const ShapeFit fit = fitCube(object, table, CubeParams{}, cut_at_bottom);
+    ASSERT_TRUE(fit.ok) << fit.reason;
+    std::printf("seed %u: %zu points, faces %d, %.1f x %.1f x %.1f mm\n", seed, cut->size(),
+                fit.faces_seen, 1000 * fit.dimensions.x(), 1000 * fit.dimensions.y(),
+                1000 * fit.dimensions.z());
+    EXPECT_EQ(fit.faces_seen, 1) << "seed " << seed;
+    // The noise of the top face's rim (1.5 mm) widens its outline by up to 2 mm a side.
+    EXPECT_NEAR(fit.dimensions.y(), size.y(), 0.0025f) << "seed " << seed;
+    EXPECT_NEAR(fit.dimensions.x(), size.x(), 0.005f) << "seed " << seed;
+  }
+}
+
 TEST(CubeFit, OneVerticalFaceIsNotEnough) {
   // Camera at table height facing the front: the depth of the box is not observable.
   const View view{"front only", kTeapot, 0.0f, {0.0f, -0.8f, 0.05f}, 0.0025f, 0.001f, 1};

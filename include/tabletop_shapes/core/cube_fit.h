@@ -10,7 +10,9 @@ namespace tabletop_shapes {
 // What the camera's edge smear (ShapeEstimatorParams::edge_bleed_px) adds at a box's hidden ends:
 // those come from the seen faces' points, whose rims an active-stereo camera smears over the
 // background beyond the silhouette, so each hidden end moves in by `distance` [m], except one
-// facing a direction in `cut_directions` (the image border cut the object there: no smear).
+// facing a direction in `cut_directions` (the image border cut the object there: no smear). A box
+// the border cut whose top face is seen takes its yaw from that face: a side face seen only as a
+// strip along the cut is not used.
 struct SilhouetteSmear {
   float distance = 0.0f;
   std::vector<Eigen::Vector3f> cut_directions;
