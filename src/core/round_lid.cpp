@@ -201,6 +201,24 @@ TopOutline describeOutline(const ShapeFit& box, const Cloud& cluster,
   return outline;
 }
 
+// The distance from the two top corners of `box` farthest from the camera (the origin of the
+// cluster's frame) to the nearest point of `cluster`: the smaller of the two.
+float farTopCornerGap(const ShapeFit& box, const Cloud& cluster) {
+  const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
+  const Eigen::Vector3f half = 0.5f * box.dimensions;
+  std::vector<std::pair<float, float>> corners;  // distance from the camera, gap to the points
+  for (const Eigen::Vector2f& sign : {Eigen::Vector2f(-1, -1), Eigen::Vector2f(1, -1),
+                                      Eigen::Vector2f(-1, 1), Eigen::Vector2f(1, 1)}) {
+    const Eigen::Vector3f corner =
+        box.center + axes * Eigen::Vector3f(sign.x() * half.x(), sign.y() * half.y(), half.z());
+    float gap = std::numeric_limits<float>::max();
+    for (const auto& p : cluster.points) gap = std::min(gap, (p.getVector3fMap() - corner).norm());
+    corners.emplace_back(corner.norm(), gap);
+  }
+  std::sort(corners.rbegin(), corners.rend());
+  return std::min(corners[0].second, corners[1].second);
+}
+
 }  // namespace
 
 TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radius, float max_radius,
@@ -214,11 +232,17 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
 
 TopOutline hiddenLidOutline(const ShapeFit& box, const Cloud& cluster, float min_radius,
                             float max_radius, float tolerance) {
+  // Only a box whose far corners are empty can be around a lid, and most boxes' are not: the
+  // corners first, the search for the circle only then (on the 16-object speed scene, callgrind,
+  // 38.3M instructions per frame with the search for every box, 1.4M so).
+  const float far_corner_gap = farTopCornerGap(box, cluster);
+  if (far_corner_gap < kFarCornerGap) return TopOutline();
   const std::vector<Eigen::Vector2f> points = outlineOfTop(box, cluster);
   if (points.empty()) return TopOutline();
   const Circle circle = bestCircle(points, min_radius, max_radius, true);
   if (!circle.ok) return TopOutline();
   TopOutline outline = describeOutline(box, cluster, points, circle, tolerance);
+  outline.far_corner_gap = far_corner_gap;
   // The camera (the cluster frame's origin) seen from the circle's centre, in the box's frame.
   const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
   const Eigen::Vector2f camera = (axes.transpose() * -box.center).head<2>();
@@ -241,19 +265,6 @@ TopOutline hiddenLidOutline(const ShapeFit& box, const Cloud& cluster, float min
     const Eigen::Vector2f rim = circle.center + circle.radius * direction;
     outline.far_overhang = std::max(outline.far_overhang, (rim.cwiseAbs() - half).maxCoeff());
   }
-  // The two top corners of the box farthest from the camera: their distance to the nearest point.
-  const float top = 0.5f * box.dimensions.z();
-  std::vector<std::pair<float, float>> corners;  // distance from the camera, gap to the points
-  for (const Eigen::Vector2f& sign : {Eigen::Vector2f(-1, -1), Eigen::Vector2f(1, -1),
-                                      Eigen::Vector2f(-1, 1), Eigen::Vector2f(1, 1)}) {
-    const Eigen::Vector3f corner =
-        box.center + axes * Eigen::Vector3f(sign.x() * half.x(), sign.y() * half.y(), top);
-    float gap = std::numeric_limits<float>::max();
-    for (const auto& p : cluster.points) gap = std::min(gap, (p.getVector3fMap() - corner).norm());
-    corners.emplace_back(corner.norm(), gap);
-  }
-  std::sort(corners.rbegin(), corners.rend());
-  outline.far_corner_gap = std::min(corners[0].second, corners[1].second);
   return outline;
 }
 

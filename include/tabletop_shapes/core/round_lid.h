@@ -32,7 +32,8 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
 
 // The same outline with the circle that holds all of it (at most one outline point beyond it),
 // for a lid cut by a taller neighbour in front, and its far side from the camera (the origin of
-// the cluster's frame) described.
+// the cluster's frame) described. `points` is 0 when the box's far top corners are not empty
+// (kFarCornerGap): no circle is searched then.
 TopOutline hiddenLidOutline(const ShapeFit& box, const Cloud& cluster, float min_radius,
                             float max_radius, float tolerance);
 
