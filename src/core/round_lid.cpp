@@ -291,6 +291,8 @@ ShapeFit cylinderUnderLid(const ShapeFit& box, const TopOutline& outline) {
   cylinder.height = box.dimensions.z();
   cylinder.dimensions = Eigen::Vector3f::Zero();
   cylinder.faces_seen = 0;
+  cylinder.bounding_box = false;  // the box may be the cluster's bounding box (no model passed)
+  cylinder.reason.clear();
   return cylinder;
 }
 

@@ -878,18 +878,27 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   // the cut, and the circle is the one that holds the whole outline, judged on the far rim that
   // nothing in front can hide (isPartlyHiddenLid; touching clutter: 4 of the 8 cans still typed
   // cube, covered 2 of 9).
-  if (best && best->type == ShapeType::Cube && cuts.directions.empty()) {
+  // The cylinder under a round lid of `box` (ok false without one), explaining the points within
+  // kRoundResidualFactor of the box's `box_residual`.
+  auto cylinderUnderARoundLid = [&](const ShapeFit& box, float box_residual) {
+    ShapeFit lid;
+    if (!cuts.directions.empty()) return lid;
     const float radius_min = params.cylinder.min_radius, radius_max = params.cylinder.max_radius;
     const float tolerance = params.max_overreach + smear.side;
-    ShapeFit lid;
     auto lidExplainsThePoints = [&](const TopOutline& outline) {
-      lid = cylinderUnderLid(*best, outline);
-      return visibleSurfaceResidual(lid, normals) < kRoundResidualFactor * best_residual;
+      lid = cylinderUnderLid(box, outline);
+      return visibleSurfaceResidual(lid, normals) < kRoundResidualFactor * box_residual;
     };
-    const TopOutline outline = topOutline(*best, *cluster, radius_min, radius_max, tolerance);
+    const TopOutline outline = topOutline(box, *cluster, radius_min, radius_max, tolerance);
     if (isRoundLid(outline) && lidExplainsThePoints(outline)) return lid;
-    const TopOutline hidden = hiddenLidOutline(*best, *cluster, radius_min, radius_max, tolerance);
+    const TopOutline hidden = hiddenLidOutline(box, *cluster, radius_min, radius_max, tolerance);
     if (isPartlyHiddenLid(hidden) && lidExplainsThePoints(hidden)) return lid;
+    lid.ok = false;
+    return lid;
+  };
+  if (best && best->type == ShapeType::Cube) {
+    const ShapeFit lid = cylinderUnderARoundLid(*best, best_residual);
+    if (lid.ok) return lid;
   }
   if (best == &lying) {
     return lyingWithoutTopSmear(
@@ -905,7 +914,15 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   std::ostringstream reason;
   reason << "no model fits: " << shapeTypeName(first) << ": " << guessed.reason << "; "
          << shapeTypeName(second) << ": " << other.reason << "; lying cylinder: " << lying.reason;
-  return fallback(*cluster, table, reason.str());
+  // A round lid on the bounding box makes it the cylinder under that lid, as on a fitted box: a
+  // rendered can in a crowd whose box fit found degenerate extents and whose round fit rested on
+  // 40 of its 489 points, a real OSD one (learn34) whose box and cone each broke a rule.
+  const ShapeFit box = fallback(*cluster, table, reason.str());
+  if (box.ok && box.bounding_box) {
+    const ShapeFit lid = cylinderUnderARoundLid(box, visibleSurfaceResidual(box, normals));
+    if (lid.ok) return lid;
+  }
+  return box;
 }
 
 }  // namespace
