@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace tabletop_shapes {
 namespace {
@@ -33,6 +35,19 @@ constexpr float kMinLidArcDeg = 200.0f;
 // (a bowl in a bowl whose box ends at the lower rim, OSD learn42: 0.27; cans 0-0.02).
 constexpr float kMaxOutside = 0.15f;
 constexpr float kMaxAbove = 0.05f;
+// A lid partly hidden by a taller neighbour in front: the rim on its far side from the camera,
+// which nothing in front can hide, lies on the circle (at least kMinFarShareOnCircle of the
+// outline points there), the circle's far half stays within kMaxFarOverhang of the box's
+// footprint, and the box's two top corners farthest from the camera lie beyond kFarCornerGap of
+// every point (the camera sees past the rim there; a box's corner has a point within half a
+// voxel diagonal, 3.5 mm, plus noise). Measured on the rendered clutter (Kinect, seed 2012): the
+// cans still typed cube had far corners 5.8-16.5 mm from their points, far shares 0.57-0.95 and
+// overhangs 1.8-13 mm where the other tests passed; of 211 boxes whose box won, 22 had both far
+// corners empty, all but one with a far share of at most 0.47 or a circle 19-188 mm beyond the
+// footprint; that one (r 57 mm over a 96 x 88 mm box) stays a box by the residual comparison.
+constexpr float kMinFarShareOnCircle = 0.55f;
+constexpr float kMaxFarOverhang = 0.015f;
+constexpr float kFarCornerGap = 0.005f;
 
 // The circle through three points; ok false when they are (nearly) collinear.
 Circle circleThrough(const Eigen::Vector2f& a, const Eigen::Vector2f& b, const Eigen::Vector2f& c) {
@@ -89,6 +104,50 @@ int pointsOnCircleAbove(const PointBlocks& points, const Circle& circle, int lea
   return on;
 }
 
+// Outline points farther than the band beyond `circle`.
+int pointsBeyondCircle(const std::vector<Eigen::Vector2f>& points, const Circle& circle) {
+  return static_cast<int>(
+      std::count_if(points.begin(), points.end(), [&](const Eigen::Vector2f& p) {
+        return (p - circle.center).norm() - circle.radius > kOutlineBand;
+      }));
+}
+
+// Every circle through three outline points, radius `min_radius`-`max_radius`; the one most of
+// them lie on (deterministic), refined on those. `containing`: only circles with at most one
+// outline point beyond them (a lid holds all of its top points; the outline of a lid cut by a
+// neighbour follows the cut inside the circle, and a circle through the cut and part of the rim
+// leaves the rest of the rim outside).
+Circle bestCircle(const std::vector<Eigen::Vector2f>& points, float min_radius, float max_radius,
+                  bool containing) {
+  Circle best;
+  int best_on = 0;
+  const PointBlocks blocks(points);
+  for (size_t i = 0; i < points.size(); ++i) {
+    for (size_t j = i + 1; j < points.size(); ++j) {
+      for (size_t k = j + 1; k < points.size(); ++k) {
+        const Circle circle = circleThrough(points[i], points[j], points[k]);
+        if (!circle.ok || circle.radius < min_radius || circle.radius > max_radius) continue;
+        const int on = pointsOnCircleAbove(blocks, circle, best_on);
+        if (on > best_on && (!containing || pointsBeyondCircle(points, circle) <= 1)) {
+          best = circle;
+          best_on = on;
+        }
+      }
+    }
+  }
+  if (!best.ok) return best;
+  std::vector<Eigen::Vector2f> inliers;
+  for (const Eigen::Vector2f& p : points) {
+    if (onCircle(p, best)) inliers.push_back(p);
+  }
+  const Circle refined = refineCircleGeometric(inliers, best, kRefineIterations);
+  if (refined.ok && refined.radius >= min_radius && refined.radius <= max_radius &&
+      pointsOnCircle(points, refined) >= best_on) {
+    return refined;
+  }
+  return best;
+}
+
 // Distance of `p` to the outline of the rectangle of half sides `half` centred at the origin.
 float distanceToRectangleEdges(const Eigen::Vector2f& p, const Eigen::Vector2f& half) {
   const Eigen::Vector2f excess = p.cwiseAbs() - half;
@@ -100,7 +159,7 @@ float distanceToRectangleEdges(const Eigen::Vector2f& p, const Eigen::Vector2f& 
 float coveredArcDeg(const std::vector<Eigen::Vector2f>& points, const Circle& circle) {
   std::vector<float> angles;
   for (const Eigen::Vector2f& p : points) {
-    if (std::abs((p - circle.center).norm() - circle.radius) > kOutlineBand) continue;
+    if (!onCircle(p, circle)) continue;
     const Eigen::Vector2f d = p - circle.center;
     angles.push_back(std::atan2(d.y(), d.x()));
   }
@@ -109,11 +168,10 @@ float coveredArcDeg(const std::vector<Eigen::Vector2f>& points, const Circle& ci
   return 360.0f - gap * 180.0f / static_cast<float>(kPi);
 }
 
-}  // namespace
-
-TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radius, float max_radius,
-                      float tolerance) {
-  TopOutline outline;
+// The outline of the top points of `cluster` (those within kTopBand of the top of `box`), in the
+// box's x / y frame from its centre: the farthest top point from their centroid in each of
+// kOutlineDirections directions. Empty with too few.
+std::vector<Eigen::Vector2f> outlineOfTop(const ShapeFit& box, const Cloud& cluster) {
   const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
   const float top = 0.5f * box.dimensions.z();
   std::vector<Eigen::Vector2f> top_points;
@@ -121,7 +179,7 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
     const Eigen::Vector3f local = axes.transpose() * (p.getVector3fMap() - box.center);
     if (local.allFinite() && local.z() >= top - kTopBand) top_points.push_back(local.head<2>());
   }
-  if (top_points.size() < static_cast<size_t>(kMinOutlinePoints)) return outline;
+  if (top_points.size() < static_cast<size_t>(kMinOutlinePoints)) return {};
   Eigen::Vector2f centroid = Eigen::Vector2f::Zero();
   for (const Eigen::Vector2f& p : top_points) centroid += p;
   centroid /= static_cast<float>(top_points.size());
@@ -143,56 +201,105 @@ TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radiu
   for (int i : farthest) {
     if (i >= 0) points.push_back(top_points[i]);
   }
-  if (points.size() < static_cast<size_t>(kMinOutlinePoints)) return outline;
+  if (points.size() < static_cast<size_t>(kMinOutlinePoints)) return {};
+  return points;
+}
 
-  // Every circle through three outline points; the one most of them lie on (deterministic).
-  Circle best;
-  int best_on = 0;
-  const PointBlocks blocks(points);
-  for (size_t i = 0; i < points.size(); ++i) {
-    for (size_t j = i + 1; j < points.size(); ++j) {
-      for (size_t k = j + 1; k < points.size(); ++k) {
-        const Circle circle = circleThrough(points[i], points[j], points[k]);
-        if (!circle.ok || circle.radius < min_radius || circle.radius > max_radius) continue;
-        const int on = pointsOnCircleAbove(blocks, circle, best_on);
-        if (on > best_on) {
-          best = circle;
-          best_on = on;
-        }
-      }
-    }
-  }
-  if (!best.ok) return outline;
-  std::vector<Eigen::Vector2f> inliers;
-  for (const Eigen::Vector2f& p : points) {
-    if (onCircle(p, best)) inliers.push_back(p);
-  }
-  const Circle refined = refineCircleGeometric(inliers, best, kRefineIterations);
-  if (refined.ok && refined.radius >= min_radius && refined.radius <= max_radius &&
-      pointsOnCircle(points, refined) >= best_on) {
-    best = refined;
-  }
-
+// How well `circle` and the box's own top face explain the outline `points` (outlineOfTop) and
+// how the cluster's points lie around it (TopOutline).
+TopOutline describeOutline(const ShapeFit& box, const Cloud& cluster,
+                           const std::vector<Eigen::Vector2f>& points, const Circle& circle,
+                           float tolerance) {
+  TopOutline outline;
   outline.points = static_cast<int>(points.size());
-  outline.on_circle = pointsOnCircle(points, best);
+  outline.on_circle = pointsOnCircle(points, circle);
   const Eigen::Vector2f half = 0.5f * box.dimensions.head<2>();
   outline.on_box_edges =
       static_cast<int>(std::count_if(points.begin(), points.end(), [&](const Eigen::Vector2f& p) {
         return distanceToRectangleEdges(p, half) <= kOutlineBand;
       }));
-  outline.arc_deg = coveredArcDeg(points, best);
+  outline.arc_deg = coveredArcDeg(points, circle);
+  const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
+  const float top = 0.5f * box.dimensions.z();
   int beyond = 0, above = 0, all = 0;
   for (const auto& p : cluster.points) {
     const Eigen::Vector3f local = axes.transpose() * (p.getVector3fMap() - box.center);
     if (!local.allFinite()) continue;
     ++all;
     above += local.z() > top + kTopBand;
-    beyond += (local.head<2>() - best.center).norm() > best.radius + tolerance;
+    beyond += (local.head<2>() - circle.center).norm() > circle.radius + tolerance;
   }
   outline.outside = static_cast<float>(beyond) / static_cast<float>(all);
   outline.above = static_cast<float>(above) / static_cast<float>(all);
-  outline.center = best.center;
-  outline.radius = best.radius;
+  outline.center = circle.center;
+  outline.radius = circle.radius;
+  return outline;
+}
+
+// The distance from the two top corners of `box` farthest from the camera (the origin of the
+// cluster's frame) to the nearest point of `cluster`: the smaller of the two.
+float farTopCornerGap(const ShapeFit& box, const Cloud& cluster) {
+  const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
+  const Eigen::Vector3f half = 0.5f * box.dimensions;
+  std::vector<std::pair<float, float>> corners;  // distance from the camera, gap to the points
+  for (const Eigen::Vector2f& sign : {Eigen::Vector2f(-1, -1), Eigen::Vector2f(1, -1),
+                                      Eigen::Vector2f(-1, 1), Eigen::Vector2f(1, 1)}) {
+    const Eigen::Vector3f corner =
+        box.center + axes * Eigen::Vector3f(sign.x() * half.x(), sign.y() * half.y(), half.z());
+    float gap = std::numeric_limits<float>::max();
+    for (const auto& p : cluster.points) gap = std::min(gap, (p.getVector3fMap() - corner).norm());
+    corners.emplace_back(corner.norm(), gap);
+  }
+  std::sort(corners.rbegin(), corners.rend());
+  return std::min(corners[0].second, corners[1].second);
+}
+
+}  // namespace
+
+TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radius, float max_radius,
+                      float tolerance) {
+  const std::vector<Eigen::Vector2f> points = outlineOfTop(box, cluster);
+  if (points.empty()) return TopOutline();
+  const Circle circle = bestCircle(points, min_radius, max_radius, false);
+  if (!circle.ok) return TopOutline();
+  return describeOutline(box, cluster, points, circle, tolerance);
+}
+
+TopOutline hiddenLidOutline(const ShapeFit& box, const Cloud& cluster, float min_radius,
+                            float max_radius, float tolerance) {
+  // Only a box whose far corners are empty can be around a lid, and most boxes' are not: the
+  // corners first, the search for the circle only then (on the 16-object speed scene, callgrind,
+  // 38.3M instructions per frame with the search for every box, 1.4M so).
+  const float far_corner_gap = farTopCornerGap(box, cluster);
+  if (far_corner_gap < kFarCornerGap) return TopOutline();
+  const std::vector<Eigen::Vector2f> points = outlineOfTop(box, cluster);
+  if (points.empty()) return TopOutline();
+  const Circle circle = bestCircle(points, min_radius, max_radius, true);
+  if (!circle.ok) return TopOutline();
+  TopOutline outline = describeOutline(box, cluster, points, circle, tolerance);
+  outline.far_corner_gap = far_corner_gap;
+  // The camera (the cluster frame's origin) seen from the circle's centre, in the box's frame.
+  const Eigen::Matrix3f axes = box.orientation.toRotationMatrix();
+  const Eigen::Vector2f camera = (axes.transpose() * -box.center).head<2>();
+  if (!camera.allFinite() || (camera - circle.center).norm() < 1e-6f) return outline;
+  const Eigen::Vector2f towards_camera = (camera - circle.center).normalized();
+  int far = 0, far_on = 0;
+  for (const Eigen::Vector2f& p : points) {
+    if ((p - circle.center).dot(towards_camera) >= 0.0f) continue;
+    ++far;
+    far_on += onCircle(p, circle);
+  }
+  outline.far_share = far > 0 ? static_cast<float>(far_on) / static_cast<float>(far) : 0.0f;
+  // The far half of the circle, every 5 degrees: how far it reaches beyond the footprint.
+  const Eigen::Vector2f half = 0.5f * box.dimensions.head<2>();
+  outline.far_overhang = 0.0f;
+  for (int step = 0; step < 72; ++step) {
+    const float angle = static_cast<float>(step) * static_cast<float>(kPi) / 36.0f;
+    const Eigen::Vector2f direction(std::cos(angle), std::sin(angle));
+    if (direction.dot(towards_camera) >= 0.0f) continue;
+    const Eigen::Vector2f rim = circle.center + circle.radius * direction;
+    outline.far_overhang = std::max(outline.far_overhang, (rim.cwiseAbs() - half).maxCoeff());
+  }
   return outline;
 }
 
@@ -204,6 +311,12 @@ bool isRoundLid(const TopOutline& outline) {
          outline.above <= kMaxAbove;
 }
 
+bool isPartlyHiddenLid(const TopOutline& outline) {
+  return outline.points > 0 && outline.far_share >= kMinFarShareOnCircle &&
+         outline.far_overhang <= kMaxFarOverhang && outline.far_corner_gap >= kFarCornerGap &&
+         outline.outside <= kMaxOutside && outline.above <= kMaxAbove;
+}
+
 ShapeFit cylinderUnderLid(const ShapeFit& box, const TopOutline& outline) {
   ShapeFit cylinder = box;
   cylinder.type = ShapeType::Cylinder;
@@ -213,6 +326,8 @@ ShapeFit cylinderUnderLid(const ShapeFit& box, const TopOutline& outline) {
   cylinder.height = box.dimensions.z();
   cylinder.dimensions = Eigen::Vector3f::Zero();
   cylinder.faces_seen = 0;
+  cylinder.bounding_box = false;  // the box may be the cluster's bounding box (no model passed)
+  cylinder.reason.clear();
   return cylinder;
 }
 

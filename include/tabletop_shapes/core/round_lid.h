@@ -18,6 +18,10 @@ struct TopOutline {
   float above = 1.0f;      // share of the cluster's points over the box's top (+ 1 cm)
   Eigen::Vector2f center;  // the circle, in the box's x / y frame from its centre [m]
   float radius = 0.0f;     // [m]
+  // hiddenLidOutline only: the side away from the camera, which a neighbour in front cannot hide.
+  float far_share = 0.0f;       // share of the outline points there that lie on the circle
+  float far_overhang = 1.0f;    // how far the circle's far half reaches beyond the footprint [m]
+  float far_corner_gap = 0.0f;  // distance of the box's two far top corners to the points [m]
 };
 
 // The outline of the top points of `cluster` under the upright `box` fitted to it, with the best
@@ -26,10 +30,22 @@ struct TopOutline {
 TopOutline topOutline(const ShapeFit& box, const Cloud& cluster, float min_radius, float max_radius,
                       float tolerance);
 
+// The same outline with the circle that holds all of it (at most one outline point beyond it),
+// for a lid cut by a taller neighbour in front, and its far side from the camera (the origin of
+// the cluster's frame) described. `points` is 0 when the box's far top corners are not empty
+// (kFarCornerGap): no circle is searched then.
+TopOutline hiddenLidOutline(const ShapeFit& box, const Cloud& cluster, float min_radius,
+                            float max_radius, float tolerance);
+
 // True when the outline is a lid's: most of it on the circle, clearly more than on the box's
 // edges, around more than a half turn, with the cluster's points inside the circle and under
 // the top.
 bool isRoundLid(const TopOutline& outline);
+
+// True when the outline of hiddenLidOutline is a lid's partly hidden from the camera: the rim on
+// the far side lies on the circle, the circle stays within the box there, the box's far top
+// corners are empty, and the cluster's points lie inside the circle and under the top.
+bool isPartlyHiddenLid(const TopOutline& outline);
 
 // The upright cylinder under the lid of `outline`: its circle, from the table (the box's bottom)
 // to the box's top.
