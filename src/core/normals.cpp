@@ -4,240 +4,230 @@
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
 
-#include <pcl/common/centroid.h>
 #include <pcl/common/eigen.h>
-#include <pcl/surface/mls.h>
-
-#include <Eigen/Cholesky>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace tabletop_shapes {
 namespace {
 
 using Pair = double __attribute__((vector_size(16)));  // SSE2 through GCC's vector extension
 
-}  // namespace
-
-void centroidAndCovariance(const Cloud& cloud, const pcl::Indices& indices,
-                           Eigen::Vector4d& centroid, Eigen::Matrix3d& covariance) {
-  Pair sum_xy = {0.0, 0.0};
-  double sum_z = 0.0;
-  for (const int i : indices) {
-    sum_xy += Pair{cloud[i].x, cloud[i].y};
-    sum_z += cloud[i].z;
-  }
-  centroid = Eigen::Vector4d(sum_xy[0], sum_xy[1], sum_z, 0.0);
-  centroid /= static_cast<double>(indices.size());
-  centroid[3] = 1;
-  const Pair mean_xy = {centroid[0], centroid[1]};
-  // PCL's entries: (1,1) += y y, (1,2) += y z, (2,2) += z z, (0,0) += x x, (0,1) += y x,
-  // (0,2) += z x, with x, y, z the offsets from the centroid.
-  Pair xx_xy = {0.0, 0.0}, xz_yy = {0.0, 0.0}, yz_zz = {0.0, 0.0};
-  for (const int i : indices) {
-    const Pair xy = Pair{cloud[i].x, cloud[i].y} - mean_xy;
-    const double z = cloud[i].z - centroid[2];
-    xx_xy += xy * Pair{xy[0], xy[0]};
-    xz_yy += Pair{z, xy[1]} * Pair{xy[0], xy[1]};
-    yz_zz += Pair{xy[1], z} * Pair{z, z};
-  }
-  covariance << xx_xy[0], xx_xy[1], xz_yy[0],  //
-      xx_xy[1], xz_yy[1], yz_zz[0],            //
-      xz_yy[0], yz_zz[0], yz_zz[1];
+inline Pair loadPair(const double* values) {
+  Pair pair;
+  std::memcpy(&pair, values, sizeof pair);
+  return pair;
 }
 
-namespace {
+inline void storePair(double* values, Pair pair) { std::memcpy(values, &pair, sizeof pair); }
 
 constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
-// The sizes of MLS's polynomial of order kOrder: its terms, as pairs; its normal equations'
-// lower triangle, row a as its first a / 2 + 1 pairs (rows[a][b / 2][b % 2]: entry (a, b)).
+// A neighbourhood as the passes of fitLocalSurface read it, one array per quantity, padded to
+// an even length so that each pass runs on pairs of neighbours (the lanes of a Pair): first the
+// offsets from the query point (x, y, z: the difference of two floats is exact in a double),
+// then over the Darboux frame (u, v, height) with the weights. The padding neighbour sits at the
+// query point and weighs 0, so it adds exact zeros to every sum.
+struct Neighbourhood {
+  std::vector<double> x, y, z, u, v, height, weight;
+  size_t count = 0, padded = 0;
+
+  void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query) {
+    count = indices.size();
+    padded = (count + 1) & ~size_t{1};
+    for (std::vector<double>* values : {&x, &y, &z, &u, &v, &height, &weight})
+      values->resize(padded);
+    for (size_t k = 0; k < count; ++k) {
+      const Point& p = cloud[indices[k]];
+      x[k] = double{p.x} - double{query.x};
+      y[k] = double{p.y} - double{query.y};
+      z[k] = double{p.z} - double{query.z};
+    }
+    if (padded > count) x[count] = y[count] = z[count] = 0.0;
+  }
+};
+
+// The neighbours' centroid (as an offset from the query point) and scatter matrix about it
+// (PCL's computeCovarianceMatrix: sums, not divided by the count), from the sums of the offsets
+// and of their products in one pass: offsets within the search radius, so the difference of the
+// two sums loses nothing that matters (a few 1e-20 m^2 against a scatter of 1e-6 m^2 or more).
+void centroidAndScatter(const Neighbourhood& near, Eigen::Vector3d& centroid,
+                        Eigen::Matrix3d& scatter) {
+  Pair sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
+  for (size_t k = 0; k < near.padded; k += 2) {
+    const Pair x = loadPair(&near.x[k]), y = loadPair(&near.y[k]), z = loadPair(&near.z[k]);
+    sx += x, sy += y, sz += z;
+    sxx += x * x, sxy += x * y, sxz += x * z;
+    syy += y * y, syz += y * z, szz += z * z;
+  }
+  auto sum = [](Pair lanes) { return lanes[0] + lanes[1]; };
+  const Eigen::Vector3d first(sum(sx), sum(sy), sum(sz));
+  Eigen::Matrix3d second;
+  second << sum(sxx), sum(sxy), sum(sxz),  //
+      sum(sxy), sum(syy), sum(syz),        //
+      sum(sxz), sum(syz), sum(szz);
+  const double count = static_cast<double>(near.count);
+  centroid = first / count;
+  scatter = second - first * centroid.transpose();
+}
+
+// MLS's polynomial of order kOrder in PCL's term order, u^i v^j with j fastest: its terms, and
+// the moments of the weights sum(w u^i v^j), i + j <= 2 kOrder, in the same order, of which the
+// normal equations are made (entry (a, b) is the moment of term a's exponents plus term b's).
 template <int kOrder>
 struct Polynomial {
   static constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
-  static constexpr int kPairs = (kTerms + 1) / 2;
-  using Terms = Pair[kPairs];
-  using Rows = Pair[kTerms][kPairs];
+  static constexpr int kDegree = 2 * kOrder;
+  static constexpr int kMoments = (kDegree + 1) * (kDegree + 2) / 2;
+  // Index of u^i v^j among the monomials of degree <= `degree` (i-major order).
+  static constexpr int index(int i, int j, int degree) {
+    return i * (degree + 1) - i * (i - 1) / 2 + j;
+  }
 };
 
-// A neighbour as the polynomial fit sees it: its offset from the projected query point over the
-// Darboux frame (u, v) and along the normal; its weight (PCL's exp(-d^2 / r^2)) is kept apart,
-// in an array of its own for expInPlace.
-struct FrameOffset {
-  double u, v, height;
-};
-
-// The polynomial's terms at (u, v) in PCL's order, u^i v^j with j fastest, as pairs (a padding
-// term stays 0).
+// The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
+// r^2)) in `coefficients`: its normal equations from the moments, summed over pairs of
+// neighbours (one per lane) with the order fixed at compile time so that the loops unroll.
+// False when the normal equations are not positive definite (neighbours on a line in (u, v)).
 template <int kOrder>
-inline void polynomialTerms(double u, double v, typename Polynomial<kOrder>::Terms& terms) {
-  double scalar[2 * Polynomial<kOrder>::kPairs] = {};
-  int j = 0;
-  double u_power = 1;
+bool fitPolynomial(const Neighbourhood& near, double* coefficients) {
+  using Poly = Polynomial<kOrder>;
+  constexpr int kTerms = Poly::kTerms, kDegree = Poly::kDegree;
+  Pair moments[Poly::kMoments] = {};
+  Pair right[kTerms] = {};
+  for (size_t k = 0; k < near.padded; k += 2) {
+    const Pair u = loadPair(&near.u[k]), v = loadPair(&near.v[k]);
+    const Pair height = loadPair(&near.height[k]);
+    Pair row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
+    row[0] = loadPair(&near.weight[k]);
+#pragma GCC unroll 8
+    for (int j = 1; j <= kDegree; ++j) row[j] = row[j - 1] * v;
+    int moment = 0, term = 0;
+#pragma GCC unroll 9
+    for (int i = 0; i <= kDegree; ++i) {
+#pragma GCC unroll 9
+      for (int j = 0; j <= kDegree - i; ++j) moments[moment++] += row[j];
+      if (i <= kOrder) {
 #pragma GCC unroll 5
-  for (int ui = 0; ui <= kOrder; ++ui) {
-    double v_power = 1;
-#pragma GCC unroll 5
-    for (int vi = 0; vi <= kOrder - ui; ++vi, ++j) {
-      scalar[j] = u_power * v_power;
-      v_power *= v;
-    }
-    u_power *= u;
-  }
+        for (int j = 0; j <= kOrder - i; ++j) right[term++] += row[j] * height;
+      }
 #pragma GCC unroll 8
-  for (int p = 0; p < Polynomial<kOrder>::kPairs; ++p)
-    terms[p] = Pair{scalar[2 * p], scalar[2 * p + 1]};
-}
-
-// Rows [kFirstRow, kEndRow) of the normal equations' lower triangle (row a as its first
-// a / 2 + 1 pairs) and, when kRightSide, the right-hand side, summed over the samples in their
-// order: each entry is the sum of (weight term_a) term_b (or height) from 0, neighbour by
-// neighbour. Few enough rows per pass that the sums stay in registers.
-template <int kOrder, int kFirstRow, int kEndRow, bool kRightSide>
-void sumRows(const std::vector<double>& weights, const std::vector<FrameOffset>& offsets,
-             typename Polynomial<kOrder>::Rows& rows,
-             typename Polynomial<kOrder>::Terms& right_side) {
-  constexpr int kPairs = Polynomial<kOrder>::kPairs;
-  Pair sums[kEndRow - kFirstRow][kPairs] = {};
-  Pair right_sums[kPairs] = {};
-  for (size_t k = 0; k < offsets.size(); ++k) {
-    const FrameOffset& offset = offsets[k];
-    Pair terms[kPairs];
-    polynomialTerms<kOrder>(offset.u, offset.v, terms);
-    const Pair weight_pair = {weights[k], weights[k]};
-    Pair weighted[kPairs];
-#pragma GCC unroll 8
-    for (int p = 0; p < kPairs; ++p) weighted[p] = weight_pair * terms[p];
-    if (kRightSide) {
-      const Pair height_pair = {offset.height, offset.height};
-#pragma GCC unroll 8
-      for (int p = 0; p < kPairs; ++p) right_sums[p] += weighted[p] * height_pair;
-    }
-#pragma GCC unroll 15
-    for (int a = kFirstRow; a < kEndRow; ++a) {
-      const double w = weighted[a / 2][a % 2];
-      const Pair weighted_a = {w, w};
-#pragma GCC unroll 8
-      for (int p = 0; p <= a / 2; ++p) sums[a - kFirstRow][p] += weighted_a * terms[p];
+      for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
     }
   }
-  for (int a = kFirstRow; a < kEndRow; ++a) {
-    for (int p = 0; p <= a / 2; ++p) rows[a][p] = sums[a - kFirstRow][p];
+  int exponents[kTerms][2];
+  for (int i = 0, term = 0; i <= kOrder; ++i) {
+    for (int j = 0; j <= kOrder - i; ++j, ++term) exponents[term][0] = i, exponents[term][1] = j;
   }
-  if (kRightSide) {
-    for (int p = 0; p < kPairs; ++p) right_side[p] = right_sums[p];
-  }
-}
-
-// The rows from kFirstRow on, in passes of at most kPassPairs sums each (the first pass also
-// sums the right-hand side).
-template <int kOrder, int kFirstRow>
-void sumRowsFrom(const std::vector<double>& weights, const std::vector<FrameOffset>& offsets,
-                 typename Polynomial<kOrder>::Rows& rows,
-                 typename Polynomial<kOrder>::Terms& right_side) {
-  constexpr int kTerms = Polynomial<kOrder>::kTerms, kPairs = Polynomial<kOrder>::kPairs;
-  constexpr int kPassPairs = 8;
-  constexpr bool kRightSide = kFirstRow == 0;
-  constexpr int kEndRow = [] {
-    int end = kFirstRow, pairs = kRightSide ? kPairs : 0;
-    while (end < kTerms && (end == kFirstRow || pairs + end / 2 + 1 <= kPassPairs))
-      pairs += end / 2 + 1, ++end;
-    return end;
-  }();
-  sumRows<kOrder, kFirstRow, kEndRow, kRightSide>(weights, offsets, rows, right_side);
-  if constexpr (kEndRow < kTerms) sumRowsFrom<kOrder, kEndRow>(weights, offsets, rows, right_side);
-}
-
-// The weighted least-squares polynomial of MLS over the Darboux frame in `result` (PCL's
-// weight exp(-d^2 / r^2)): its normal equations summed neighbour by neighbour, the order fixed
-// at compile time so that the loops over the terms unroll. The weights and frame offsets come
-// first, in a pass of their own (the weights' exp four at a time: expInPlace); the sums then
-// stay in registers. They run on pairs of doubles (SSE2 through GCC's vector extension: each lane
-// does the same multiply and add, so every entry is the same double as one at a time).
-template <int kOrder>
-void fitPolynomial(const Cloud& cloud, const pcl::Indices& neighbours, double search_radius,
-                   pcl::MLSResult& result) {
-  constexpr int kTerms = Polynomial<kOrder>::kTerms;
-  // One buffer per thread (MLS runs on several), looked up once per call: in a shared library
-  // each thread_local access is a call.
-  thread_local std::vector<double> thread_weights;
-  thread_local std::vector<FrameOffset> thread_offsets;
-  std::vector<double>& weights = thread_weights;
-  std::vector<FrameOffset>& offsets = thread_offsets;
-  weights.resize(neighbours.size());
-  offsets.resize(neighbours.size());
-  const double squared_radius = search_radius * search_radius;
-  // The frame in locals: `result` may be a thread_local, each access to it a call.
-  const Eigen::Vector3d mean = result.mean, u_axis = result.u_axis, v_axis = result.v_axis,
-                        normal = result.plane_normal;
-  for (size_t k = 0; k < neighbours.size(); ++k) {
-    const Point& p = cloud[neighbours[k]];
-    const Eigen::Vector3d offset(p.x - mean[0], p.y - mean[1], p.z - mean[2]);
-    weights[k] = -offset.dot(offset) / squared_radius;
-    offsets[k] = {offset.dot(u_axis), offset.dot(v_axis), offset.dot(normal)};
-  }
-  expInPlace(weights.data(), weights.size());
-  typename Polynomial<kOrder>::Rows rows;
-  typename Polynomial<kOrder>::Terms right_side;
-  sumRowsFrom<kOrder, 0>(weights, offsets, rows, right_side);
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
-  Eigen::Matrix<double, kTerms, 1> right;
+  Eigen::Matrix<double, kTerms, 1> right_side;
   for (int a = 0; a < kTerms; ++a) {
-    right[a] = right_side[a / 2][a % 2];
-    for (int b = 0; b <= a; ++b) normal_matrix(a, b) = rows[a][b / 2][b % 2];
+    right_side[a] = right[a][0] + right[a][1];
+    for (int b = 0; b <= a; ++b) {
+      const Pair m = moments[Poly::index(exponents[a][0] + exponents[b][0],
+                                         exponents[a][1] + exponents[b][1], kDegree)];
+      normal_matrix(a, b) = m[0] + m[1];
+    }
   }
-  result.c_vec = normal_matrix.template selfadjointView<Eigen::Lower>().llt().solve(right);
+  // Cholesky of the lower triangle in place, then the two triangular solves: a fixed size the
+  // compiler unrolls (Eigen's LLT runs its blocked loops for a 6 x 6 matrix).
+  double* x = right_side.data();
+  for (int j = 0; j < kTerms; ++j) {
+    double diagonal = normal_matrix(j, j);
+    for (int k = 0; k < j; ++k) diagonal -= normal_matrix(j, k) * normal_matrix(j, k);
+    if (!(diagonal > 0.0)) return false;
+    const double pivot = std::sqrt(diagonal);
+    normal_matrix(j, j) = pivot;
+    for (int i = j + 1; i < kTerms; ++i) {
+      double entry = normal_matrix(i, j);
+      for (int k = 0; k < j; ++k) entry -= normal_matrix(i, k) * normal_matrix(j, k);
+      normal_matrix(i, j) = entry / pivot;
+    }
+  }
+  for (int i = 0; i < kTerms; ++i) {
+    for (int k = 0; k < i; ++k) x[i] -= normal_matrix(i, k) * x[k];
+    x[i] /= normal_matrix(i, i);
+  }
+  for (int i = kTerms - 1; i >= 0; --i) {
+    for (int k = i + 1; k < kTerms; ++k) x[i] -= normal_matrix(k, i) * x[k];
+    x[i] /= normal_matrix(i, i);
+  }
+  for (int a = 0; a < kTerms; ++a) coefficients[a] = x[a];
+  return true;
 }
 
-// The local surface of point `index` as pcl::MLSResult::computeMLSSurface computes it (the
-// plane of the neighbours' covariance, the query point projected on it, the Darboux frame,
-// then a weighted polynomial fit of the heights over it), but with the fit's normal equations
-// summed point by point in matrices of fixed size: PCL builds a coefficients x neighbours
-// matrix on the heap for every point and multiplies it out with a general matrix product,
-// which took most of the shape stage's instructions. The sums differ from PCL's only in the
-// order of floating-point additions.
-void fitLocalSurface(const Cloud& cloud, int index, const pcl::Indices& neighbours,
-                     double search_radius, int order, pcl::MLSResult& result) {
-  Eigen::Matrix3d covariance;
-  Eigen::Vector4d centroid = Eigen::Vector4d::Zero();
-  centroidAndCovariance(cloud, neighbours, centroid, covariance);
-  double eigen_value;
-  Eigen::Vector3d eigen_vector;
-  pcl::eigen33(covariance, eigen_value, eigen_vector);
-  Eigen::Vector4d plane(0, 0, 0, 0);
-  plane.head<3>() = eigen_vector;
-  plane[3] = -1 * plane.dot(centroid);
-  result.query_point = cloud[index].getVector3fMap().cast<double>();
-  if (!eigen_vector.allFinite()) {  // no plane (coincident or collinear neighbours)
-    result.valid = false;
-    result.mean = result.query_point;
-    // No normal, so the point is dropped: PCL leaves the normal as it was, here that of the
-    // point fitted before on this thread, which depends on how the points are shared out.
-    result.plane_normal = eigen_vector;
-    return;
-  }
-  result.valid = true;
-  const double distance = result.query_point.dot(plane.head<3>()) + plane[3];
-  result.mean = result.query_point - distance * plane.head<3>();
-  result.curvature = covariance.trace();
-  if (result.curvature != 0) result.curvature = std::abs(eigen_value / result.curvature);
-  result.plane_normal = plane.head<3>();
-  result.v_axis = result.plane_normal.unitOrthogonal();
-  result.u_axis = result.plane_normal.cross(result.v_axis);
-  result.num_neighbors = static_cast<int>(neighbours.size());
-  result.order = order;
-  const int coefficients = (order + 1) * (order + 2) / 2;
-  if (order <= 1 || result.num_neighbors < coefficients) return;
+// A query point's smoothed place, its normal, and the plane fit's curvature (PCL's:
+// smallest eigenvalue over the trace).
+struct LocalSurface {
+  Eigen::Vector3d point, normal;
+  double curvature = 0.0;
+};
 
+// The smoothed point and normal of one query point (pcl::MLSResult::computeMLSSurface, then
+// projectQueryPoint with SIMPLE projection): the plane of the neighbours' scatter matrix, the
+// query point projected on it, the Darboux frame, a weighted polynomial fit of the heights
+// over it, and the point moved to the polynomial at (0, 0) with the polynomial's normal there.
+// The same arithmetic as PCL's but for the order of the additions: the neighbours come
+// unsorted, the sums run on pairs of them, and the normal equations are made of moments.
+// False when the neighbourhood has no plane (coincident or collinear neighbours).
+bool fitLocalSurface(Neighbourhood& near, const Point& query, double search_radius, int order,
+                     LocalSurface& surface) {
+  Eigen::Vector3d centroid;
+  Eigen::Matrix3d scatter;
+  centroidAndScatter(near, centroid, scatter);
+  double eigen_value;
+  Eigen::Vector3d normal;
+  pcl::eigen33(scatter, eigen_value, normal);
+  if (!normal.allFinite()) return false;
+  // The query point (the origin of the offsets) projected on the plane: the origin of the
+  // Darboux frame (PCL's MLSResult::mean).
+  const Eigen::Vector3d mean = normal.dot(centroid) * normal;
+  const double trace = scatter.trace();
+  surface.curvature = trace != 0 ? std::abs(eigen_value / trace) : trace;
+  const Eigen::Vector3d query_point = query.getVector3fMap().cast<double>();
+  surface.point = query_point + mean;
+  surface.normal = normal;
+  const int terms = (order + 1) * (order + 2) / 2;
+  if (order <= 1 || static_cast<int>(near.count) < terms) return true;
+
+  // The Darboux frame and the weights, in pairs of neighbours; the weights' exp four at a time.
+  const Eigen::Vector3d v_axis = normal.unitOrthogonal(), u_axis = normal.cross(v_axis);
+  const Pair negative_inverse = Pair{} - 1.0 / (search_radius * search_radius);
+  auto broadcast = [](double value) { return Pair{value, value}; };
+  for (size_t k = 0; k < near.padded; k += 2) {
+    const Pair x = loadPair(&near.x[k]) - broadcast(mean[0]);
+    const Pair y = loadPair(&near.y[k]) - broadcast(mean[1]);
+    const Pair z = loadPair(&near.z[k]) - broadcast(mean[2]);
+    storePair(&near.weight[k], (x * x + y * y + z * z) * negative_inverse);
+    storePair(&near.u[k], x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
+    storePair(&near.v[k], x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
+    storePair(&near.height[k], x * normal[0] + y * normal[1] + z * normal[2]);
+  }
+  expInPlace(near.weight.data(), near.padded);
+  if (near.padded > near.count) near.weight[near.count] = 0.0;
+
+  double coefficients[Polynomial<kMaxOrder>::kTerms];
+  bool solved = false;
   switch (order) {
     case 2:
-      return fitPolynomial<2>(cloud, neighbours, search_radius, result);
+      solved = fitPolynomial<2>(near, coefficients);
+      break;
     case 3:
-      return fitPolynomial<3>(cloud, neighbours, search_radius, result);
+      solved = fitPolynomial<3>(near, coefficients);
+      break;
     default:
-      return fitPolynomial<4>(cloud, neighbours, search_radius, result);
+      solved = fitPolynomial<4>(near, coefficients);
   }
+  if (!solved || !std::isfinite(coefficients[0])) return true;  // PCL: the plane's projection
+  // At (u, v) = (0, 0) the polynomial is its constant term and its gradient the coefficients of
+  // v (term 1) and of u (term order + 1).
+  surface.point += coefficients[0] * normal;
+  const Eigen::Vector3d tilted =
+      normal - coefficients[order + 1] * u_axis - coefficients[1] * v_axis;
+  surface.normal = tilted.normalized();
+  return true;
 }
 
 // MLS smooths the points (projection on the local polynomial, PCL's SIMPLE projection) and gives
@@ -257,10 +247,9 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
     finite = copy;
   }
   const int order = std::clamp(params.polynomial_order, 0, kMaxOrder);
-  const int coefficients = (order + 1) * (order + 2) / 2;
-  // Sorted neighbours, as PCL's k-d tree gives them: the plane's sums run in that order. (Cells
-  // of half the radius cost more: 125 hash lookups per cell of only a few points.)
-  GridSearch<Point> search(params.search_radius);
+  // The neighbours in no order: fitLocalSurface's sums do not ask for one. (Cells of half the
+  // radius cost more: 125 hash lookups per cell of only a few points.)
+  GridSearch<Point> search(params.search_radius, /*sorted=*/false);
   search.setInputCloud(finite);
   // Visited cell by cell, on every free core (each point's surface depends on its neighbours
   // alone); kept in the cloud's order.
@@ -268,13 +257,14 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
   std::vector<char> fitted(finite->size(), 0);
   auto smooth = [&](int i, const pcl::Indices& neighbours) {
     if (neighbours.size() < 3) return;
-    thread_local pcl::MLSResult surface;
-    fitLocalSurface(*finite, i, neighbours, params.search_radius, order, surface);
-    const pcl::MLSResult::MLSProjectionResults projected =
-        surface.projectQueryPoint(pcl::MLSResult::SIMPLE, coefficients);
+    thread_local Neighbourhood near;  // one per thread (MLS runs on several), reused
+    Neighbourhood& neighbourhood = near;
+    neighbourhood.gather(*finite, neighbours, (*finite)[i]);
+    LocalSurface surface;
+    if (!fitLocalSurface(neighbourhood, (*finite)[i], params.search_radius, order, surface)) return;
     pcl::PointNormal& p = by_index[i];
-    p.getVector3fMap() = projected.point.cast<float>();
-    p.getNormalVector3fMap() = projected.normal.cast<float>();
+    p.getVector3fMap() = surface.point.cast<float>();
+    p.getNormalVector3fMap() = surface.normal.cast<float>();
     p.curvature = static_cast<float>(surface.curvature);
     fitted[i] = 1;
   };

@@ -164,26 +164,6 @@ TEST(NormalsMLS, SurfaceAndNormalsAreThoseOfPclMovingLeastSquares) {
   }
 }
 
-// The same doubles as PCL's two functions, on neighbourhoods of a noisy tilted plane far from
-// the origin (offsets small against the coordinates: the sums round).
-TEST(NormalsMLS, CentroidAndCovarianceAreBitForBitThoseOfPcl) {
-  const CloudPtr cloud = noisyPlane(Eigen::Vector3f(0.3f, -0.5f, 0.8f).normalized(), 0.002f, 11);
-  std::mt19937 rng(5);
-  std::uniform_int_distribution<int> pick(0, static_cast<int>(cloud->size()) - 1);
-  for (int trial = 0; trial < 20; ++trial) {
-    std::vector<int> indices(3 + 7 * trial);
-    for (int& i : indices) i = pick(rng);
-    Eigen::Vector4d expected_centroid = Eigen::Vector4d::Zero(), centroid;
-    Eigen::Matrix3d expected_covariance, covariance;
-    pcl::compute3DCentroid(*cloud, indices, expected_centroid);
-    pcl::computeCovarianceMatrix(*cloud, indices, expected_centroid, expected_covariance);
-    centroidAndCovariance(*cloud, indices, centroid, covariance);
-    for (int k = 0; k < 4; ++k) EXPECT_EQ(centroid[k], expected_centroid[k]) << trial;
-    for (int k = 0; k < 9; ++k) EXPECT_EQ(covariance(k), expected_covariance(k)) << trial;
-    EXPECT_GT(covariance(0, 0), 0.0);
-  }
-}
-
 // MLS of order 2 as its definition reads, one neighbour and one sum at a time: the neighbours
 // within the radius nearest first (ties by index), the plane of their centroid and covariance,
 // the weighted normal equations of the height polynomial summed neighbour by neighbour in that
@@ -252,9 +232,10 @@ bool sameFloats(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
   return std::memcmp(a.data(), b.data(), sizeof(float) * 3) == 0;
 }
 
-// The sums' order is part of the answer (each point's surface rounds by it): our fit, on one
-// thread and shared out over two, gives the definition's floats, every one.
-TEST(NormalsMLS, SurfaceAndNormalOfEveryPointAreThoseOfTheDefinitionBitForBit) {
+// Our fit (neighbours unsorted, sums over pairs of them, normal equations from moments), on one
+// thread and shared out over two, gives the definition's surface up to the rounding of the
+// sums: a few float ulps at most; and the same floats on one thread as on two.
+TEST(NormalsMLS, SurfaceAndNormalOfEveryPointAreThoseOfTheDefinitionUpToRounding) {
   auto cloud = std::make_shared<Cloud>();
   std::mt19937 rng(7);
   std::normal_distribution<float> noise(0.0f, 0.0015f);
@@ -278,18 +259,30 @@ TEST(NormalsMLS, SurfaceAndNormalOfEveryPointAreThoseOfTheDefinitionBitForBit) {
     if (fitted) expected.push_back(p);
   }
   EXPECT_EQ(expected.size(), cloud->size() - 4);  // all but the line
+  NormalCloud by_thread_count[2];
   for (const unsigned threads : {1u, 2u}) {
     setWorkerThreads(threads);
-    NormalCloud ours;
+    NormalCloud& ours = by_thread_count[threads - 1];
     estimateNormalsMLS(cloud, params, ours);
     setWorkerThreads(0);
     ASSERT_EQ(ours.size(), expected.size()) << threads << " threads";
-    int differing = 0;
+    float worst_point = 0.0f, worst_normal = 0.0f;
     for (size_t i = 0; i < ours.size(); ++i) {
-      differing += !sameFloats(ours[i].getVector3fMap(), expected[i].getVector3fMap()) ||
-                   !sameFloats(ours[i].getNormalVector3fMap(), expected[i].getNormalVector3fMap());
+      worst_point =
+          std::max(worst_point, (ours[i].getVector3fMap() - expected[i].getVector3fMap()).norm());
+      worst_normal =
+          std::max(worst_normal,
+                   (ours[i].getNormalVector3fMap() - expected[i].getNormalVector3fMap()).norm());
     }
-    EXPECT_EQ(differing, 0) << "of " << ours.size() << " points, " << threads << " threads";
+    EXPECT_LT(worst_point, 1e-6f) << threads << " threads";  // ~8 ulps of a float near 1 m
+    EXPECT_LT(worst_normal, 1e-5f) << threads << " threads";
+  }
+  for (size_t i = 0; i < by_thread_count[0].size(); ++i) {
+    EXPECT_TRUE(sameFloats(by_thread_count[0][i].getVector3fMap(),
+                           by_thread_count[1][i].getVector3fMap()) &&
+                sameFloats(by_thread_count[0][i].getNormalVector3fMap(),
+                           by_thread_count[1][i].getNormalVector3fMap()))
+        << "point " << i;
   }
 }
 
