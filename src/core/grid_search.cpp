@@ -430,6 +430,19 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
       for (size_t i = begin; i < end; ++i) {
         const Entry& q = points_[i];
         squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
+        if (!this->sorted_results_) {
+          // In the candidates' order, without a branch: each candidate is written and the
+          // end moves past it when it is near.
+          neighbours.resize(xs.size());
+          size_t near = 0;
+          for (size_t j = 0; j < xs.size(); ++j) {
+            neighbours[near] = indices[j];
+            near += squared[j] < radius_sq;
+          }
+          neighbours.resize(near);
+          visit(q.index, neighbours);
+          continue;
+        }
         // (distance, index) as one integer: the bits of a float >= 0 order as its value, so
         // sorting the keys orders as radiusSearch's sort of pairs, in fewer instructions.
         keys.clear();
@@ -440,7 +453,7 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
             keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
           }
         }
-        if (this->sorted_results_) std::sort(keys.begin(), keys.end());
+        std::sort(keys.begin(), keys.end());
         neighbours.resize(keys.size());
         for (size_t j = 0; j < keys.size(); ++j) neighbours[j] = static_cast<int>(keys[j] & ~0u);
         visit(q.index, neighbours);
