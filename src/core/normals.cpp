@@ -13,30 +13,43 @@
 namespace tabletop_shapes {
 namespace {
 
-using Pair = double __attribute__((vector_size(16)));  // SSE2 through GCC's vector extension
+// Four neighbours at a time, one per lane (GCC's vector extension: one AVX instruction where
+// fitLocalSurface's AVX2 clone runs, two SSE2 ones elsewhere, the same doubles either way, as
+// no clone fuses a multiply and an add).
+constexpr size_t kLanes = 4;
+// The helpers below are always inlined: no call passes Lanes by value, so GCC's note that
+// doing so without AVX changes the ABI does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
 
-inline Pair loadPair(const double* values) {
-  Pair pair;
-  std::memcpy(&pair, values, sizeof pair);
-  return pair;
+[[gnu::always_inline]] inline Lanes loadLanes(const double* values) {
+  Lanes lanes;
+  std::memcpy(&lanes, values, sizeof lanes);
+  return lanes;
 }
 
-inline void storePair(double* values, Pair pair) { std::memcpy(values, &pair, sizeof pair); }
+[[gnu::always_inline]] inline void storeLanes(double* values, Lanes lanes) {
+  std::memcpy(values, &lanes, sizeof lanes);
+}
+
+[[gnu::always_inline]] inline double sumOfLanes(Lanes lanes) {
+  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
 
 constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
 // A neighbourhood as the passes of fitLocalSurface read it, one array per quantity, padded to
-// an even length so that each pass runs on pairs of neighbours (the lanes of a Pair): first the
+// a multiple of kLanes so that each pass runs on kLanes neighbours at a time: first the
 // offsets from the query point (x, y, z: the difference of two floats is exact in a double),
-// then over the Darboux frame (u, v, height) with the weights. The padding neighbour sits at the
-// query point and weighs 0, so it adds exact zeros to every sum.
+// then over the Darboux frame (u, v, height) with the weights. The padding neighbours sit at the
+// query point and weigh 0, so it adds exact zeros to every sum.
 struct Neighbourhood {
   std::vector<double> x, y, z, u, v, height, weight;
   size_t count = 0, padded = 0;
 
   void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query) {
     count = indices.size();
-    padded = (count + 1) & ~size_t{1};
+    padded = (count + kLanes - 1) / kLanes * kLanes;
     for (std::vector<double>* values : {&x, &y, &z, &u, &v, &height, &weight})
       values->resize(padded);
     for (size_t k = 0; k < count; ++k) {
@@ -45,7 +58,7 @@ struct Neighbourhood {
       y[k] = double{p.y} - double{query.y};
       z[k] = double{p.z} - double{query.z};
     }
-    if (padded > count) x[count] = y[count] = z[count] = 0.0;
+    for (size_t k = count; k < padded; ++k) x[k] = y[k] = z[k] = 0.0;
   }
 };
 
@@ -53,21 +66,21 @@ struct Neighbourhood {
 // (PCL's computeCovarianceMatrix: sums, not divided by the count), from the sums of the offsets
 // and of their products in one pass: offsets within the search radius, so the difference of the
 // two sums loses nothing that matters (a few 1e-20 m^2 against a scatter of 1e-6 m^2 or more).
-void centroidAndScatter(const Neighbourhood& near, Eigen::Vector3d& centroid,
-                        Eigen::Matrix3d& scatter) {
-  Pair sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
-  for (size_t k = 0; k < near.padded; k += 2) {
-    const Pair x = loadPair(&near.x[k]), y = loadPair(&near.y[k]), z = loadPair(&near.z[k]);
+[[gnu::always_inline]] inline void centroidAndScatter(const Neighbourhood& near,
+                                                      Eigen::Vector3d& centroid,
+                                                      Eigen::Matrix3d& scatter) {
+  Lanes sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
+  for (size_t k = 0; k < near.padded; k += kLanes) {
+    const Lanes x = loadLanes(&near.x[k]), y = loadLanes(&near.y[k]), z = loadLanes(&near.z[k]);
     sx += x, sy += y, sz += z;
     sxx += x * x, sxy += x * y, sxz += x * z;
     syy += y * y, syz += y * z, szz += z * z;
   }
-  auto sum = [](Pair lanes) { return lanes[0] + lanes[1]; };
-  const Eigen::Vector3d first(sum(sx), sum(sy), sum(sz));
+  const Eigen::Vector3d first(sumOfLanes(sx), sumOfLanes(sy), sumOfLanes(sz));
   Eigen::Matrix3d second;
-  second << sum(sxx), sum(sxy), sum(sxz),  //
-      sum(sxy), sum(syy), sum(syz),        //
-      sum(sxz), sum(syz), sum(szz);
+  second << sumOfLanes(sxx), sumOfLanes(sxy), sumOfLanes(sxz),  //
+      sumOfLanes(sxy), sumOfLanes(syy), sumOfLanes(syz),        //
+      sumOfLanes(sxz), sumOfLanes(syz), sumOfLanes(szz);
   const double count = static_cast<double>(near.count);
   centroid = first / count;
   scatter = second - first * centroid.transpose();
@@ -88,20 +101,21 @@ struct Polynomial {
 };
 
 // The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
-// r^2)) in `coefficients`: its normal equations from the moments, summed over pairs of
-// neighbours (one per lane) with the order fixed at compile time so that the loops unroll.
-// False when the normal equations are not positive definite (neighbours on a line in (u, v)).
+// r^2)) in `coefficients`: its normal equations from the moments, summed over kLanes
+// neighbours at a time (one per lane) with the order fixed at compile time so that the loops
+// unroll. False when the normal equations are not positive definite (neighbours on a line in (u,
+// v)).
 template <int kOrder>
-bool fitPolynomial(const Neighbourhood& near, double* coefficients) {
+[[gnu::always_inline]] inline bool fitPolynomial(const Neighbourhood& near, double* coefficients) {
   using Poly = Polynomial<kOrder>;
   constexpr int kTerms = Poly::kTerms, kDegree = Poly::kDegree;
-  Pair moments[Poly::kMoments] = {};
-  Pair right[kTerms] = {};
-  for (size_t k = 0; k < near.padded; k += 2) {
-    const Pair u = loadPair(&near.u[k]), v = loadPair(&near.v[k]);
-    const Pair height = loadPair(&near.height[k]);
-    Pair row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
-    row[0] = loadPair(&near.weight[k]);
+  Lanes moments[Poly::kMoments] = {};
+  Lanes right[kTerms] = {};
+  for (size_t k = 0; k < near.padded; k += kLanes) {
+    const Lanes u = loadLanes(&near.u[k]), v = loadLanes(&near.v[k]);
+    const Lanes height = loadLanes(&near.height[k]);
+    Lanes row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
+    row[0] = loadLanes(&near.weight[k]);
 #pragma GCC unroll 8
     for (int j = 1; j <= kDegree; ++j) row[j] = row[j - 1] * v;
     int moment = 0, term = 0;
@@ -124,11 +138,10 @@ bool fitPolynomial(const Neighbourhood& near, double* coefficients) {
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
   Eigen::Matrix<double, kTerms, 1> right_side;
   for (int a = 0; a < kTerms; ++a) {
-    right_side[a] = right[a][0] + right[a][1];
+    right_side[a] = sumOfLanes(right[a]);
     for (int b = 0; b <= a; ++b) {
-      const Pair m = moments[Poly::index(exponents[a][0] + exponents[b][0],
-                                         exponents[a][1] + exponents[b][1], kDegree)];
-      normal_matrix(a, b) = m[0] + m[1];
+      normal_matrix(a, b) = sumOfLanes(moments[Poly::index(
+          exponents[a][0] + exponents[b][0], exponents[a][1] + exponents[b][1], kDegree)]);
     }
   }
   // Cholesky of the lower triangle in place, then the two triangular solves: a fixed size the
@@ -170,10 +183,13 @@ struct LocalSurface {
 // query point projected on it, the Darboux frame, a weighted polynomial fit of the heights
 // over it, and the point moved to the polynomial at (0, 0) with the polynomial's normal there.
 // The same arithmetic as PCL's but for the order of the additions: the neighbours come
-// unsorted, the sums run on pairs of them, and the normal equations are made of moments.
+// unsorted, the sums run on kLanes of them at a time, and the normal equations are made of moments.
 // False when the neighbourhood has no plane (coincident or collinear neighbours).
-bool fitLocalSurface(Neighbourhood& near, const Point& query, double search_radius, int order,
-                     LocalSurface& surface) {
+__attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbourhood& near,
+                                                                       const Point& query,
+                                                                       double search_radius,
+                                                                       int order,
+                                                                       LocalSurface& surface) {
   Eigen::Vector3d centroid;
   Eigen::Matrix3d scatter;
   centroidAndScatter(near, centroid, scatter);
@@ -192,21 +208,21 @@ bool fitLocalSurface(Neighbourhood& near, const Point& query, double search_radi
   const int terms = (order + 1) * (order + 2) / 2;
   if (order <= 1 || static_cast<int>(near.count) < terms) return true;
 
-  // The Darboux frame and the weights, in pairs of neighbours; the weights' exp four at a time.
+  // The Darboux frame and the weights, kLanes neighbours at a time; the weights' exp four at a
+  // time.
   const Eigen::Vector3d v_axis = normal.unitOrthogonal(), u_axis = normal.cross(v_axis);
-  const Pair negative_inverse = Pair{} - 1.0 / (search_radius * search_radius);
-  auto broadcast = [](double value) { return Pair{value, value}; };
-  for (size_t k = 0; k < near.padded; k += 2) {
-    const Pair x = loadPair(&near.x[k]) - broadcast(mean[0]);
-    const Pair y = loadPair(&near.y[k]) - broadcast(mean[1]);
-    const Pair z = loadPair(&near.z[k]) - broadcast(mean[2]);
-    storePair(&near.weight[k], (x * x + y * y + z * z) * negative_inverse);
-    storePair(&near.u[k], x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
-    storePair(&near.v[k], x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
-    storePair(&near.height[k], x * normal[0] + y * normal[1] + z * normal[2]);
+  const double negative_inverse = -1.0 / (search_radius * search_radius);
+  for (size_t k = 0; k < near.padded; k += kLanes) {
+    const Lanes x = loadLanes(&near.x[k]) - mean[0];
+    const Lanes y = loadLanes(&near.y[k]) - mean[1];
+    const Lanes z = loadLanes(&near.z[k]) - mean[2];
+    storeLanes(&near.weight[k], (x * x + y * y + z * z) * negative_inverse);
+    storeLanes(&near.u[k], x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
+    storeLanes(&near.v[k], x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
+    storeLanes(&near.height[k], x * normal[0] + y * normal[1] + z * normal[2]);
   }
   expInPlace(near.weight.data(), near.padded);
-  if (near.padded > near.count) near.weight[near.count] = 0.0;
+  for (size_t k = near.count; k < near.padded; ++k) near.weight[k] = 0.0;
 
   double coefficients[Polynomial<kMaxOrder>::kTerms];
   bool solved = false;
