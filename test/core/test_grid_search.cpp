@@ -78,6 +78,29 @@ TEST(GridSearch, RadiusNeighboursOfEveryPointAreThoseOfAPairwiseSearch) {
   }
 }
 
+// Unsorted (as MLS asks for them), the lists hold the same neighbours, in some order, and on
+// several threads the same order as in one pass.
+TEST(GridSearch, UnsortedRadiusNeighboursAreThePairwiseSearchsSets) {
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.02f, /*sorted=*/false);
+  search.setInputCloud(cloud);
+  std::vector<pcl::Indices> one_pass(cloud->size()), shared_out(cloud->size());
+  size_t out_of_order = 0;
+  search.forEachRadiusNeighbours(0.02, [&](int i, const pcl::Indices& neighbours) {
+    one_pass[i] = neighbours;
+    pcl::Indices sorted = neighbours;
+    std::sort(sorted.begin(), sorted.end());
+    pcl::Indices expected = bruteForce(*cloud, i, 0.02f);
+    out_of_order += neighbours != expected;
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(sorted, expected) << "point " << i;
+  });
+  EXPECT_GT(out_of_order, 0u);  // the lists are not sorted by distance: that is the point
+  search.forEachRadiusNeighbours(
+      0.02, [&](int i, const pcl::Indices& neighbours) { shared_out[i] = neighbours; }, 2);
+  EXPECT_EQ(shared_out, one_pass);
+}
+
 // Shared out among threads, the cells give every point the lists of one pass.
 TEST(GridSearch, RadiusNeighboursOnSeveralThreadsAreThoseOfOnePass) {
   const CloudPtr cloud = surfaceCloud();
