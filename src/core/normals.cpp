@@ -42,7 +42,7 @@ constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 // a multiple of kLanes so that each pass runs on kLanes neighbours at a time: first the
 // offsets from the query point (x, y, z: the difference of two floats is exact in a double),
 // then over the Darboux frame (u, v, height) with the weights. The padding neighbours sit at the
-// query point and weigh 0, so it adds exact zeros to every sum.
+// query point and weigh 0, so they add exact zeros to every sum.
 struct Neighbourhood {
   std::vector<double> x, y, z, u, v, height, weight;
   size_t count = 0, padded = 0;
@@ -50,8 +50,10 @@ struct Neighbourhood {
   void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query) {
     count = indices.size();
     padded = (count + kLanes - 1) / kLanes * kLanes;
-    for (std::vector<double>* values : {&x, &y, &z, &u, &v, &height, &weight})
-      values->resize(padded);
+    if (x.size() < padded) {  // grown only: the passes read the first `padded`
+      for (std::vector<double>* values : {&x, &y, &z, &u, &v, &height, &weight})
+        values->resize(padded);
+    }
     for (size_t k = 0; k < count; ++k) {
       const Point& p = cloud[indices[k]];
       x[k] = double{p.x} - double{query.x};
