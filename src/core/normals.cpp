@@ -7,6 +7,7 @@
 #include <pcl/common/eigen.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 
@@ -88,6 +89,11 @@ struct Neighbourhood {
   scatter = second - first * centroid.transpose();
 }
 
+// Index of u^i v^j among the monomials of degree <= `degree` (i-major order, j fastest).
+constexpr int monomialIndex(int i, int j, int degree) {
+  return i * (degree + 1) - i * (i - 1) / 2 + j;
+}
+
 // MLS's polynomial of order kOrder in PCL's term order, u^i v^j with j fastest: its terms, and
 // the moments of the weights sum(w u^i v^j), i + j <= 2 kOrder, in the same order, of which the
 // normal equations are made (entry (a, b) is the moment of term a's exponents plus term b's).
@@ -96,10 +102,21 @@ struct Polynomial {
   static constexpr int kTerms = (kOrder + 1) * (kOrder + 2) / 2;
   static constexpr int kDegree = 2 * kOrder;
   static constexpr int kMoments = (kDegree + 1) * (kDegree + 2) / 2;
-  // Index of u^i v^j among the monomials of degree <= `degree` (i-major order).
-  static constexpr int index(int i, int j, int degree) {
-    return i * (degree + 1) - i * (i - 1) / 2 + j;
-  }
+  // The moment of normal-equation entry (a, b): that of term a's exponents plus term b's.
+  static constexpr std::array<std::array<int, kTerms>, kTerms> kEntryMoment = [] {
+    int exponents[kTerms][2] = {};
+    for (int i = 0, term = 0; i <= kOrder; ++i) {
+      for (int j = 0; j <= kOrder - i; ++j, ++term) exponents[term][0] = i, exponents[term][1] = j;
+    }
+    std::array<std::array<int, kTerms>, kTerms> moment_of{};
+    for (int a = 0; a < kTerms; ++a) {
+      for (int b = 0; b < kTerms; ++b) {
+        moment_of[a][b] = monomialIndex(exponents[a][0] + exponents[b][0],
+                                        exponents[a][1] + exponents[b][1], kDegree);
+      }
+    }
+    return moment_of;
+  }();
 };
 
 // The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
@@ -133,22 +150,20 @@ template <int kOrder>
       for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
     }
   }
-  int exponents[kTerms][2];
-  for (int i = 0, term = 0; i <= kOrder; ++i) {
-    for (int j = 0; j <= kOrder - i; ++j, ++term) exponents[term][0] = i, exponents[term][1] = j;
-  }
+  double moment_sums[Poly::kMoments];
+  for (int m = 0; m < Poly::kMoments; ++m) moment_sums[m] = sumOfLanes(moments[m]);
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
   Eigen::Matrix<double, kTerms, 1> right_side;
+#pragma GCC unroll 15
   for (int a = 0; a < kTerms; ++a) {
     right_side[a] = sumOfLanes(right[a]);
-    for (int b = 0; b <= a; ++b) {
-      normal_matrix(a, b) = sumOfLanes(moments[Poly::index(
-          exponents[a][0] + exponents[b][0], exponents[a][1] + exponents[b][1], kDegree)]);
-    }
+#pragma GCC unroll 15
+    for (int b = 0; b <= a; ++b) normal_matrix(a, b) = moment_sums[Poly::kEntryMoment[a][b]];
   }
   // Cholesky of the lower triangle in place, then the two triangular solves: a fixed size the
   // compiler unrolls (Eigen's LLT runs its blocked loops for a 6 x 6 matrix).
   double* x = right_side.data();
+#pragma GCC unroll 15
   for (int j = 0; j < kTerms; ++j) {
     double diagonal = normal_matrix(j, j);
     for (int k = 0; k < j; ++k) diagonal -= normal_matrix(j, k) * normal_matrix(j, k);
@@ -161,10 +176,12 @@ template <int kOrder>
       normal_matrix(i, j) = entry / pivot;
     }
   }
+#pragma GCC unroll 15
   for (int i = 0; i < kTerms; ++i) {
     for (int k = 0; k < i; ++k) x[i] -= normal_matrix(i, k) * x[k];
     x[i] /= normal_matrix(i, i);
   }
+#pragma GCC unroll 15
   for (int i = kTerms - 1; i >= 0; --i) {
     for (int k = i + 1; k < kTerms; ++k) x[i] -= normal_matrix(k, i) * x[k];
     x[i] /= normal_matrix(i, i);
