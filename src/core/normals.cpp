@@ -41,29 +41,41 @@ constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
 // A neighbourhood as the passes of fitLocalSurface read it, one array per quantity, padded to
 // a multiple of kLanes so that each pass runs on kLanes neighbours at a time: first the
-// offsets from the query point (x, y, z: the difference of two floats is exact in a double),
-// then over the Darboux frame (u, v, height) with the weights. The padding neighbours sit at the
-// query point and weigh 0, so they add exact zeros to every sum.
+// neighbours' coordinates as the cloud holds them (floats: their offsets from the query point
+// are taken in the passes, exact in doubles), then their place in the Darboux frame (u, v,
+// height) with their weights. The padding neighbours sit at the query point and weigh 0, so
+// they add exact zeros to every sum.
 struct Neighbourhood {
-  std::vector<double> x, y, z, u, v, height, weight;
+  std::vector<float> px, py, pz;
+  std::vector<double> u, v, height, weight;
+  Eigen::Vector3d query;
   size_t count = 0, padded = 0;
 
-  void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query) {
+  void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query_point) {
     count = indices.size();
     padded = (count + kLanes - 1) / kLanes * kLanes;
-    if (x.size() < padded) {  // grown only: the passes read the first `padded`
-      for (std::vector<double>* values : {&x, &y, &z, &u, &v, &height, &weight})
-        values->resize(padded);
+    query = query_point.getVector3fMap().cast<double>();
+    if (px.size() < padded) {  // grown only: the passes read the first `padded`
+      for (std::vector<float>* values : {&px, &py, &pz}) values->resize(padded);
+      for (std::vector<double>* values : {&u, &v, &height, &weight}) values->resize(padded);
     }
+    float *xs = px.data(), *ys = py.data(), *zs = pz.data();
     for (size_t k = 0; k < count; ++k) {
       const Point& p = cloud[indices[k]];
-      x[k] = double{p.x} - double{query.x};
-      y[k] = double{p.y} - double{query.y};
-      z[k] = double{p.z} - double{query.z};
+      xs[k] = p.x, ys[k] = p.y, zs[k] = p.z;
     }
-    for (size_t k = count; k < padded; ++k) x[k] = y[k] = z[k] = 0.0;
+    for (size_t k = count; k < padded; ++k)
+      xs[k] = query_point.x, ys[k] = query_point.y, zs[k] = query_point.z;
   }
 };
+
+// Neighbours k .. k + kLanes - 1 of `coordinates` less the query's `origin`, in doubles.
+[[gnu::always_inline]] inline Lanes offsetLanes(const float* coordinates, size_t k, double origin) {
+  using FloatLanes = float __attribute__((vector_size(kLanes * sizeof(float))));
+  FloatLanes floats;
+  std::memcpy(&floats, coordinates + k, sizeof floats);
+  return __builtin_convertvector(floats, Lanes) - origin;
+}
 
 // The neighbours' centroid (as an offset from the query point) and scatter matrix about it
 // (PCL's computeCovarianceMatrix: sums, not divided by the count), from the sums of the offsets
@@ -73,8 +85,10 @@ struct Neighbourhood {
                                                       Eigen::Vector3d& centroid,
                                                       Eigen::Matrix3d& scatter) {
   Lanes sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
-  for (size_t k = 0; k < near.padded; k += kLanes) {
-    const Lanes x = loadLanes(&near.x[k]), y = loadLanes(&near.y[k]), z = loadLanes(&near.z[k]);
+  const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
+  for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
+    const Lanes x = offsetLanes(xs, k, near.query[0]), y = offsetLanes(ys, k, near.query[1]),
+                z = offsetLanes(zs, k, near.query[2]);
     sx += x, sy += y, sz += z;
     sxx += x * x, sxy += x * y, sxz += x * z;
     syy += y * y, syz += y * z, szz += z * z;
@@ -205,7 +219,6 @@ struct LocalSurface {
 // unsorted, the sums run on kLanes of them at a time, and the normal equations are made of moments.
 // False when the neighbourhood has no plane (coincident or collinear neighbours).
 __attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbourhood& near,
-                                                                       const Point& query,
                                                                        double search_radius,
                                                                        int order,
                                                                        LocalSurface& surface) {
@@ -221,8 +234,7 @@ __attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbour
   const Eigen::Vector3d mean = normal.dot(centroid) * normal;
   const double trace = scatter.trace();
   surface.curvature = trace != 0 ? std::abs(eigen_value / trace) : trace;
-  const Eigen::Vector3d query_point = query.getVector3fMap().cast<double>();
-  surface.point = query_point + mean;
+  surface.point = near.query + mean;
   surface.normal = normal;
   const int terms = (order + 1) * (order + 2) / 2;
   if (order <= 1 || static_cast<int>(near.count) < terms) return true;
@@ -231,14 +243,18 @@ __attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbour
   // time.
   const Eigen::Vector3d v_axis = normal.unitOrthogonal(), u_axis = normal.cross(v_axis);
   const double negative_inverse = -1.0 / (search_radius * search_radius);
-  for (size_t k = 0; k < near.padded; k += kLanes) {
-    const Lanes x = loadLanes(&near.x[k]) - mean[0];
-    const Lanes y = loadLanes(&near.y[k]) - mean[1];
-    const Lanes z = loadLanes(&near.z[k]) - mean[2];
-    storeLanes(&near.weight[k], (x * x + y * y + z * z) * negative_inverse);
-    storeLanes(&near.u[k], x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
-    storeLanes(&near.v[k], x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
-    storeLanes(&near.height[k], x * normal[0] + y * normal[1] + z * normal[2]);
+  // The arrays in locals: the stores (memcpy) may alias anything, the vectors' members included.
+  const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
+  double *weights = near.weight.data(), *us = near.u.data(), *vs = near.v.data(),
+         *heights = near.height.data();
+  for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
+    const Lanes x = offsetLanes(xs, k, near.query[0]) - mean[0];
+    const Lanes y = offsetLanes(ys, k, near.query[1]) - mean[1];
+    const Lanes z = offsetLanes(zs, k, near.query[2]) - mean[2];
+    storeLanes(weights + k, (x * x + y * y + z * z) * negative_inverse);
+    storeLanes(us + k, x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
+    storeLanes(vs + k, x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
+    storeLanes(heights + k, x * normal[0] + y * normal[1] + z * normal[2]);
   }
   expInPlace(near.weight.data(), near.padded);
   for (size_t k = near.count; k < near.padded; ++k) near.weight[k] = 0.0;
@@ -296,7 +312,7 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
     Neighbourhood& neighbourhood = near;
     neighbourhood.gather(*finite, neighbours, (*finite)[i]);
     LocalSurface surface;
-    if (!fitLocalSurface(neighbourhood, (*finite)[i], params.search_radius, order, surface)) return;
+    if (!fitLocalSurface(neighbourhood, params.search_radius, order, surface)) return;
     pcl::PointNormal& p = by_index[i];
     p.getVector3fMap() = surface.point.cast<float>();
     p.getNormalVector3fMap() = surface.normal.cast<float>();
