@@ -117,20 +117,12 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
  private:
   InputCloudCallbacks callbacks_;
   uint64_t max_points_;
-  ReceivedCloudPool clouds_;
+  CloudPool<pcl::PointXYZ> clouds_;  // one read while Preprocess holds the last
   // The last cloud deserialize() read and admitted (same callback thread as call()).
   std::atomic<const void*> read_here_{nullptr};
 };
 
 }  // namespace
-
-boost::shared_ptr<ReceivedCloud> ReceivedCloudPool::next(size_t points) {
-  // use_count 1: only the pool holds it, and only the pool hands it out.
-  if (!last_ || last_.use_count() > 1 || last_->points.capacity() > 2 * points) {
-    last_ = boost::make_shared<ReceivedCloud>();
-  }
-  return last_;
-}
 
 std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::PointCloud2& msg) {
   const uint8_t* points = nullptr;

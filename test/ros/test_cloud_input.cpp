@@ -89,7 +89,7 @@ TEST(CloudInput, ColourCloudIsReadAsXyzIntoAReusedCloud) {
 // The cloud of the last frame is read into again once nobody holds it; one still held, or one
 // far larger than the frame (after a burst), is not.
 TEST(CloudInput, ReceivedCloudIsReusedOnceReleased) {
-  bridge::ReceivedCloudPool pool;
+  bridge::CloudPool<pcl::PointXYZ> pool;
   boost::shared_ptr<bridge::ReceivedCloud> first = pool.next(1000);
   first->points.resize(1000);
   boost::shared_ptr<bridge::ReceivedCloud> second = pool.next(1000);

@@ -8,6 +8,8 @@
 // warning per frame or reading garbage.
 #pragma once
 
+#include "tabletop_shapes/ros/cloud_pool.h"
+
 #include <boost/shared_ptr.hpp>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -37,18 +39,6 @@ std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max
 
 // x y z of a valid `msg`; layout and header kept. Reuses the memory `cloud` holds.
 void readInputCloud(const sensor_msgs::PointCloud2& msg, ReceivedCloud& cloud);
-
-// The clouds PointCloud2 messages are read into, one after the other: the last one again when
-// nobody holds it any more (the usual case: Preprocess is done with a frame before the next
-// is read), saving a 5 MB allocation, its page faults and its construction a VGA frame; else
-// a new one. A cloud far larger than the frame (after a burst) is not kept.
-class ReceivedCloudPool {
- public:
-  boost::shared_ptr<ReceivedCloud> next(size_t points);
-
- private:
-  boost::shared_ptr<ReceivedCloud> last_;
-};
 
 // The same three steps without copying the point bytes into msg.data (a VGA XYZRGB cloud is
 // ~10 MB, and the subscriber reads it straight from roscpp's receive buffer): `msg` gets every
