@@ -69,20 +69,21 @@ using CloudCallbackParameter = const boost::shared_ptr<const InputCloud>&;
 // result drops the message before the callback.
 class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackParameter> {
  public:
-  InputCloudHelper(const std::function<void(CloudCallbackParameter)>& on_cloud,
-                   const InvalidCloudCallback& on_invalid, uint64_t max_points,
-                   const AdmitCallback& admit)
-      : ros::SubscriptionCallbackHelperT<CloudCallbackParameter>(on_cloud),
-        on_invalid_(on_invalid),
-        max_points_(max_points),
-        admit_(admit) {}
+  InputCloudHelper(const InputCloudCallbacks& callbacks, uint64_t max_points)
+      : ros::SubscriptionCallbackHelperT<CloudCallbackParameter>(callbacks.on_shared),
+        callbacks_(callbacks),
+        max_points_(max_points) {}
 
   // A cloud read by deserialize() was admitted there; one handed over by pointer is asked here.
   void call(ros::SubscriptionCallbackHelperCallParams& params) override {
-    const void* cloud = params.event.getMessage().get();
-    if (cloud != read_here_ && admit_) {
-      const auto* input = static_cast<const InputCloud*>(cloud);
-      if (!admit_(pcl_conversions::fromPCL(input->header))) return;
+    const boost::shared_ptr<const void> message = params.event.getConstMessage();
+    if (message.get() == read_here_) {
+      callbacks_.on_received(boost::static_pointer_cast<const ReceivedCloud>(message));
+      return;
+    }
+    if (callbacks_.admit) {
+      const auto* input = static_cast<const InputCloud*>(message.get());
+      if (!callbacks_.admit(pcl_conversions::fromPCL(input->header))) return;
     }
     ros::SubscriptionCallbackHelperT<CloudCallbackParameter>::call(params);
   }
@@ -96,26 +97,27 @@ class InputCloudHelper : public ros::SubscriptionCallbackHelperT<CloudCallbackPa
     const std::string unreadable =
         deserializeCloudLayout(params.buffer, params.length, layout, points, point_bytes);
     if (!unreadable.empty()) {
-      on_invalid_(layout.header, "unreadable message: " + unreadable);
+      callbacks_.on_invalid(layout.header, "unreadable message: " + unreadable);
       return {};
     }
     const std::string invalid = invalidCloudReason(layout, point_bytes, max_points_);
     if (!invalid.empty()) {
-      on_invalid_(layout.header, invalid);
+      callbacks_.on_invalid(layout.header, invalid);
       return {};
     }
     // Before the points are read: a refused frame costs no more than its header.
-    if (admit_ && !admit_(layout.header)) return {};
-    auto cloud = boost::make_shared<InputCloud>();
+    if (callbacks_.admit && !callbacks_.admit(layout.header)) return {};
+    const boost::shared_ptr<ReceivedCloud> cloud =
+        clouds_.next(static_cast<size_t>(layout.width) * layout.height);
     readInputCloud(layout, points, *cloud);
     read_here_ = cloud.get();
     return cloud;
   }
 
  private:
-  InvalidCloudCallback on_invalid_;
+  InputCloudCallbacks callbacks_;
   uint64_t max_points_;
-  AdmitCallback admit_;
+  CloudPool<pcl::PointXYZ> clouds_;  // one read while Preprocess holds the last
   // The last cloud deserialize() read and admitted (same callback thread as call()).
   std::atomic<const void*> read_here_{nullptr};
 };
@@ -204,44 +206,39 @@ std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, size_t point
   return "";
 }
 
-void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud) {
+void readInputCloud(const sensor_msgs::PointCloud2& msg, ReceivedCloud& cloud) {
   readInputCloud(msg, msg.data.data(), cloud);
 }
 
-void readInputCloud(const sensor_msgs::PointCloud2& msg, const uint8_t* points, InputCloud& cloud) {
+void readInputCloud(const sensor_msgs::PointCloud2& msg, const uint8_t* points,
+                    ReceivedCloud& cloud) {
   cloud.header = pcl_conversions::toPCL(msg.header);
   cloud.width = msg.width;
   cloud.height = msg.height;
   cloud.is_dense = msg.is_dense;
+  // A reused cloud of the same size constructs nothing here; every point is written below.
   cloud.points.resize(static_cast<size_t>(msg.width) * msg.height);
   const uint32_t offset_x = findField(msg, "x")->offset, offset_y = findField(msg, "y")->offset,
                  offset_z = findField(msg, "z")->offset;
-  // Colour is optional and 4 bytes wide as "rgb" (float or uint32) or "rgba".
-  const sensor_msgs::PointField* rgb = findField(msg, "rgb");
-  if (!rgb) rgb = findField(msg, "rgba");
-  if (rgb && rgb->offset + 4 > msg.point_step) rgb = nullptr;
-  size_t i = 0;
+  pcl::PointXYZ* out = cloud.points.data();
   for (uint32_t row = 0; row < msg.height; ++row) {
     const uint8_t* point = points + static_cast<size_t>(row) * msg.row_step;
-    for (uint32_t column = 0; column < msg.width; ++column, ++i, point += msg.point_step) {
-      pcl::PointXYZRGB& p = cloud.points[i];
-      std::memcpy(&p.x, point + offset_x, 4);
-      std::memcpy(&p.y, point + offset_y, 4);
-      std::memcpy(&p.z, point + offset_z, 4);
-      p.rgba = 0;
-      if (rgb) std::memcpy(&p.rgba, point + rgb->offset, 4);
+    for (uint32_t column = 0; column < msg.width; ++column, ++out, point += msg.point_step) {
+      std::memcpy(&out->x, point + offset_x, 4);
+      std::memcpy(&out->y, point + offset_y, 4);
+      std::memcpy(&out->z, point + offset_z, 4);
+      out->data[3] = 1.0f;  // as a constructed point: PCL's 4-vector maps read it
     }
   }
 }
 
-ros::Subscriber subscribeInputCloud(
-    ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
-    const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const InvalidCloudCallback& on_invalid, uint64_t max_points, const AdmitCallback& admit) {
+ros::Subscriber subscribeInputCloud(ros::NodeHandle& node, const std::string& topic,
+                                    uint32_t queue_size, const InputCloudCallbacks& callbacks,
+                                    uint64_t max_points) {
   ros::SubscribeOptions options;
   // Topic type and checksum are PointCloud2's (pcl_ros's traits); the helper does the rest.
-  options.init<InputCloud>(topic, queue_size, on_cloud);
-  options.helper = boost::make_shared<InputCloudHelper>(on_cloud, on_invalid, max_points, admit);
+  options.init<InputCloud>(topic, queue_size, callbacks.on_shared);
+  options.helper = boost::make_shared<InputCloudHelper>(callbacks, max_points);
   return node.subscribe(options);
 }
 

@@ -17,6 +17,7 @@
 #include "tabletop_shapes/core/depth_to_cloud.h"
 #include "tabletop_shapes/core/playback_schedule.h"
 #include "tabletop_shapes/driver/openni2_camera.h"
+#include "tabletop_shapes/ros/cloud_pool.h"
 #include "tabletop_shapes/ros/stage_monitor.h"
 #include "tabletop_shapes/OpenNI2DriverConfig.h"
 
@@ -139,6 +140,10 @@ class OpenNI2DriverNodelet : public nodelet::Nodelet {
   ros::Time depth_stamp_;
   bool depth_pending_ = false;
   uint64_t depth_frames_seen_ = 0, color_frames_seen_ = 0;
+  // The published clouds, filled again once every subscriber released them (roscpp
+  // serialises a remote subscriber's copy inside publish()).
+  bridge::CloudPool<pcl::PointXYZRGB> color_clouds_;
+  bridge::CloudPool<pcl::PointXYZ> depth_clouds_;
   uint32_t clouds_published_ = 0;  // header.seq: Preprocess counts the clouds it drops
   std::vector<uint8_t> rgb_;
   int rgb_width_ = 0, rgb_height_ = 0;
@@ -364,7 +369,7 @@ void OpenNI2DriverNodelet::publishCloud() {
   header.stamp = depth_stamp_;
   header.seq = ++clouds_published_;
   if (with_color) {
-    auto cloud = boost::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+    const auto cloud = color_clouds_.next(depth_mm_.size());
     depthToCloud(depth_mm_.data(), depth_intrinsics_, rgb_.data(), rgb_width_, rgb_height_, *cloud);
     header.frame_id = registered ? rgb_frame_id_ : depth_frame_id_;
     cloud->header = pcl_conversions::toPCL(header);
@@ -372,7 +377,7 @@ void OpenNI2DriverNodelet::publishCloud() {
     bridge::markPublished(shared);  // lets Preprocess count it as received without a copy
     points_pub_.publish(shared);
   } else {
-    auto cloud = boost::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+    const auto cloud = depth_clouds_.next(depth_mm_.size());
     depthToCloud(depth_mm_.data(), depth_intrinsics_, *cloud);
     header.frame_id = depth_frame_id_;
     cloud->header = pcl_conversions::toPCL(header);

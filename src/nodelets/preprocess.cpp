@@ -1,7 +1,8 @@
 // tabletop_shapes/Preprocess (paper 2.1): any sensor_msgs/PointCloud2 with float32 x y z (rgb
 // optional; a driver, a bag, another camera) -> range-limited, voxel-downsampled XYZ cloud.
-// Subscribes: input (sensor_msgs/PointCloud2; an XYZRGB cloud of a nodelet in the same manager,
-//             such as OpenNI2Driver's, arrives without a copy: see ros/cloud_input.h)
+// Subscribes: input (sensor_msgs/PointCloud2, read as x y z; an XYZRGB cloud of a nodelet in
+//             the same manager, such as OpenNI2Driver's, arrives without a copy: see
+//             ros/cloud_input.h)
 // Publishes:  preprocessed (pcl::PointCloud<pcl::PointXYZ>, shared with the next nodelet;
 //             header.seq numbers the frames, so that the next stage counts the ones it drops)
 //             view (tabletop_shapes/View, same stamp): the bounds of the input's valid pixels,
@@ -82,12 +83,14 @@ class PreprocessNodelet : public nodelet::Nodelet {
                     static_cast<int>(kDefaultMaxPoints));
     }
     max_points_ = max_points < 1 ? kDefaultMaxPoints : static_cast<uint64_t>(max_points);
-    subscriber_ = bridge::subscribeInputCloud(
-        node, "input", queue_size, [this](const auto& cloud) { onCloud(cloud); },
-        [this](const std_msgs::Header& header, const std::string& invalid) {
-          skip(header, invalid);
-        },
-        max_points_, [this](const std_msgs::Header& header) { return admit(header); });
+    bridge::InputCloudCallbacks callbacks;
+    callbacks.on_shared = [this](const auto& cloud) { onCloud(cloud); };
+    callbacks.on_received = [this](const auto& cloud) { onCloud(cloud); };
+    callbacks.on_invalid = [this](const std_msgs::Header& header, const std::string& invalid) {
+      skip(header, invalid);
+    };
+    callbacks.admit = [this](const std_msgs::Header& header) { return admit(header); };
+    subscriber_ = bridge::subscribeInputCloud(node, "input", queue_size, callbacks, max_points_);
     monitor_->expectInput<sensor_msgs::PointCloud2>(subscriber_);
     // The chain's answers free places in flight: on the multi-threaded handle, so that an
     // answer is not held up behind a frame this nodelet is preprocessing. By pointer in the
@@ -139,7 +142,9 @@ class PreprocessNodelet : public nodelet::Nodelet {
                           bridge::skippedFrameObjects(header, "invalid cloud: " + reason));
   }
 
-  void onCloud(const boost::shared_ptr<const bridge::InputCloud>& input) {
+  // The driver's XYZRGB cloud by pointer, or a PointCloud2 read as XYZ.
+  template <typename PointT>
+  void onCloud(const boost::shared_ptr<const pcl::PointCloud<PointT>>& input) {
     const bridge::Stopwatch stopwatch;
     monitor_->countInput(input.get());
     monitor_->countSequence(input->header.seq);

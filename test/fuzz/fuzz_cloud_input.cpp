@@ -24,15 +24,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (in_place_ok != copied_ok) std::abort();
   if (!copied_ok) return 0;
 
-  InputCloud cloud, in_place;
+  ReceivedCloud cloud, in_place;
   readInputCloud(msg, cloud);
   readInputCloud(layout, points, in_place);
   if (cloud.size() != static_cast<size_t>(msg.width) * msg.height) std::abort();
   if (in_place.size() != cloud.size()) std::abort();
   // Bits, not floats: NaN payloads must compare equal too (the points' padding is not read).
   for (size_t i = 0; i < cloud.size(); ++i) {
-    const pcl::PointXYZRGB &a = cloud.points[i], &b = in_place.points[i];
-    if (std::memcmp(a.data, b.data, 3 * sizeof(float)) != 0 || a.rgba != b.rgba) std::abort();
+    const pcl::PointXYZ &a = cloud.points[i], &b = in_place.points[i];
+    if (std::memcmp(a.data, b.data, 3 * sizeof(float)) != 0) std::abort();
   }
   return 0;
 }

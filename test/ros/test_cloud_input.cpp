@@ -38,7 +38,7 @@ TEST(CloudInput, ValidCloudIsReadExactly) {
   msg.header.frame_id = "camera";
   msg.header.seq = 42;
   ASSERT_EQ(invalidCloudReason(msg, kCap), "");
-  bridge::InputCloud cloud;
+  bridge::ReceivedCloud cloud;
   bridge::readInputCloud(msg, cloud);
   ASSERT_EQ(cloud.size(), 12u);
   EXPECT_EQ(cloud.width, 4u);
@@ -49,6 +49,60 @@ TEST(CloudInput, ValidCloudIsReadExactly) {
   EXPECT_FLOAT_EQ(cloud.points[11].z, 1.011f);
   EXPECT_EQ(invalidCloudReason(xyzCloud(0, 1), kCap), "") << "the empty cloud";
   EXPECT_EQ(invalidCloudReason(xyzCloud(0, 0), kCap), "");
+}
+
+// A camera's XYZRGB cloud (depth_image_proc's layout: x y z at 0 4 8, rgb at 16, 32 bytes a
+// point) is read as x y z; a reused cloud holding a larger frame keeps nothing of it.
+TEST(CloudInput, ColourCloudIsReadAsXyzIntoAReusedCloud) {
+  sensor_msgs::PointCloud2 msg;
+  sensor_msgs::PointCloud2Modifier modifier(msg);
+  modifier.setPointCloud2FieldsByString(2, "xyz", "rgb");
+  ASSERT_EQ(msg.point_step, 32u);
+  modifier.resize(6);
+  msg.width = 3;
+  msg.height = 2;
+  msg.row_step = 3 * msg.point_step;
+  sensor_msgs::PointCloud2Iterator<float> x(msg, "x"), y(msg, "y"), z(msg, "z");
+  sensor_msgs::PointCloud2Iterator<uint8_t> rgb(msg, "rgb");
+  for (int i = 0; i < 6; ++i, ++x, ++y, ++z, ++rgb) {
+    *x = 0.5f * i;
+    *y = -0.25f * i;
+    *z = 2.0f + i;
+    rgb[0] = rgb[1] = rgb[2] = 200;
+  }
+  ASSERT_EQ(invalidCloudReason(msg, kCap), "");
+  bridge::ReceivedCloud cloud;
+  cloud.points.assign(10, pcl::PointXYZ(9.0f, 9.0f, 9.0f));
+  cloud.points[4].data[3] = 7.0f;
+  bridge::readInputCloud(msg, cloud);
+  ASSERT_EQ(cloud.size(), 6u);
+  EXPECT_EQ(cloud.width, 3u);
+  EXPECT_EQ(cloud.height, 2u);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(cloud.points[i].x, 0.5f * i) << i;
+    EXPECT_EQ(cloud.points[i].y, -0.25f * i) << i;
+    EXPECT_EQ(cloud.points[i].z, 2.0f + i) << i;
+    EXPECT_EQ(cloud.points[i].data[3], 1.0f) << i << ": as a constructed point's";
+  }
+}
+
+// The cloud of the last frame is read into again once nobody holds it; one still held, or one
+// far larger than the frame (after a burst), is not.
+TEST(CloudInput, ReceivedCloudIsReusedOnceReleased) {
+  bridge::CloudPool<pcl::PointXYZ> pool;
+  boost::shared_ptr<bridge::ReceivedCloud> first = pool.next(1000);
+  first->points.resize(1000);
+  boost::shared_ptr<bridge::ReceivedCloud> second = pool.next(1000);
+  EXPECT_NE(second.get(), first.get()) << "the first frame is still held: a new cloud";
+  second->points.resize(1000);
+  const bridge::ReceivedCloud* second_address = second.get();
+  first.reset();
+  second.reset();
+  boost::shared_ptr<bridge::ReceivedCloud> third = pool.next(900);
+  EXPECT_EQ(third.get(), second_address) << "released: read into again";
+  EXPECT_EQ(third->points.capacity(), 1000u);
+  third.reset();
+  EXPECT_NE(pool.next(400).get(), second_address) << "over twice the frame's points: not kept";
 }
 
 // Finding 3: 108 bytes with width 0, height 2^32-1 and row_step 0 stalled the chain 5-12 s.
@@ -154,7 +208,7 @@ TEST(CloudInput, PointsAreReadInPlaceFromTheReceivedBytes) {
   ASSERT_EQ(invalidCloudReason(layout, point_bytes, kCap), "");
   EXPECT_EQ(invalidCloudReason(layout, point_bytes - 16, kCap),
             "data shorter than declared: 368 bytes, row_step 96 x height 4 = 384");
-  bridge::InputCloud in_place, copied;
+  bridge::ReceivedCloud in_place, copied;
   bridge::readInputCloud(layout, points, in_place);
   bridge::readInputCloud(msg, copied);
   ASSERT_EQ(in_place.size(), 24u);

@@ -1,10 +1,14 @@
 // The chain's entry point for point clouds: one subscription that takes a cloud by pointer when
 // a nodelet in the same manager publishes pcl::PointCloud<pcl::PointXYZRGB> (our OpenNI2
 // driver), and reads any other sensor_msgs/PointCloud2 (a bag, another process, another
-// driver) after checking it. A plain subscription cannot do both: roscpp hands over the
-// pointer only when the subscriber's type is the publisher's, and pcl_ros's reader accepts a
-// cloud without x or with short data, warning per frame or reading garbage.
+// driver) after checking it, x y z only: the chain never uses colour, and a 16-byte point
+// halves what a camera's 32-byte XYZRGB cloud costs to read and to preprocess. A plain
+// subscription cannot do both: roscpp hands over the pointer only when the subscriber's type
+// is the publisher's, and pcl_ros's reader accepts a cloud without x or with short data,
+// warning per frame or reading garbage.
 #pragma once
+
+#include "tabletop_shapes/ros/cloud_pool.h"
 
 #include <boost/shared_ptr.hpp>
 #include <pcl/point_cloud.h>
@@ -18,7 +22,9 @@
 namespace tabletop_shapes {
 namespace bridge {
 
+// A cloud handed over by pointer (the driver's) and a PointCloud2 as it is read.
 using InputCloud = pcl::PointCloud<pcl::PointXYZRGB>;
+using ReceivedCloud = pcl::PointCloud<pcl::PointXYZ>;
 
 // A serialised sensor_msgs/PointCloud2 read into `msg`, every length checked against the bytes
 // present before anything is allocated (roscpp's deserializer resizes a vector to the length
@@ -31,8 +37,8 @@ std::string deserializeCloud(const uint8_t* data, size_t size, sensor_msgs::Poin
 // the data, so a refusal costs no more than the message's length.
 std::string invalidCloudReason(const sensor_msgs::PointCloud2& msg, uint64_t max_points);
 
-// x y z (and rgb when the message has it) of a valid `msg`; layout and header kept.
-void readInputCloud(const sensor_msgs::PointCloud2& msg, InputCloud& cloud);
+// x y z of a valid `msg`; layout and header kept. Reuses the memory `cloud` holds.
+void readInputCloud(const sensor_msgs::PointCloud2& msg, ReceivedCloud& cloud);
 
 // The same three steps without copying the point bytes into msg.data (a VGA XYZRGB cloud is
 // ~10 MB, and the subscriber reads it straight from roscpp's receive buffer): `msg` gets every
@@ -42,7 +48,7 @@ std::string deserializeCloudLayout(const uint8_t* data, size_t size, sensor_msgs
 std::string invalidCloudReason(const sensor_msgs::PointCloud2& layout, size_t point_bytes,
                                uint64_t max_points);
 void readInputCloud(const sensor_msgs::PointCloud2& layout, const uint8_t* points,
-                    InputCloud& cloud);
+                    ReceivedCloud& cloud);
 
 // The header of a refused cloud (default-constructed when even it was unreadable), and why.
 using InvalidCloudCallback = std::function<void(const std_msgs::Header&, const std::string&)>;
@@ -50,14 +56,21 @@ using InvalidCloudCallback = std::function<void(const std_msgs::Header&, const s
 // Whether a valid cloud (its header) is taken in; false: the callback has answered it itself.
 using AdmitCallback = std::function<bool(const std_msgs::Header&)>;
 
-// `on_cloud` gets every valid cloud `admit` takes in (all when `admit` is empty), `on_invalid`
-// the reason a cloud was refused; all three run on the node's callback queue. A PointCloud2 is
-// admitted before its points are read (a refusal costs its header only). A cloud handed over
-// by pointer is not checked here: its size against max_points is the caller's to check.
-ros::Subscriber subscribeInputCloud(
-    ros::NodeHandle& node, const std::string& topic, uint32_t queue_size,
-    const std::function<void(const boost::shared_ptr<const InputCloud>&)>& on_cloud,
-    const InvalidCloudCallback& on_invalid, uint64_t max_points, const AdmitCallback& admit = {});
+// Where the clouds `admit` takes in (all when `admit` is empty) go: `on_shared` gets a cloud
+// handed over by pointer, `on_received` a PointCloud2 read (into one cloud reused from frame
+// to frame while the callback does not keep it), `on_invalid` the reason a cloud was refused;
+// all run on the node's callback queue. A PointCloud2 is admitted before its points are read
+// (a refusal costs its header only). A cloud handed over by pointer is not checked here: its
+// size against max_points is the caller's to check.
+struct InputCloudCallbacks {
+  std::function<void(const boost::shared_ptr<const InputCloud>&)> on_shared;
+  std::function<void(const boost::shared_ptr<const ReceivedCloud>&)> on_received;
+  InvalidCloudCallback on_invalid;
+  AdmitCallback admit;
+};
+ros::Subscriber subscribeInputCloud(ros::NodeHandle& node, const std::string& topic,
+                                    uint32_t queue_size, const InputCloudCallbacks& callbacks,
+                                    uint64_t max_points);
 
 }  // namespace bridge
 }  // namespace tabletop_shapes
