@@ -72,6 +72,34 @@ int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance
   return count;
 }
 
+int PlaneSupport::countWithAngleBound(const Eigen::Vector3f& normal, float d,
+                                      float distance_threshold, float cos_threshold,
+                                      double& angle_bound) {
+  const Float4 a = broadcast(normal.x()), b = broadcast(normal.y()), c = broadcast(normal.z());
+  const Float4 offset = broadcast(d);
+  const Float4 max_distance = broadcast(distance_threshold);
+  const Float4 min_cosine = broadcast(cos_threshold);
+  const Float4 one = broadcast(1.0f);
+  Int4 counts = {};
+  Float4 bounds = {};
+  for (size_t k = 0; k < points_.x.size(); ++k) {
+    const Float4 distance =
+        magnitude((a * points_.x[k] + (b * points_.y[k] + c * points_.z[k])) + offset);
+    const Float4 cosine = magnitude(a * normals_.x[k] + (b * normals_.y[k] + c * normals_.z[k]));
+    const Int4 inlier = ~(distance >= max_distance) & ~(cosine <= min_cosine);
+    counts -= inlier;
+    // 1 - c is exact for c in [0.5, 1] (the inliers' cosines; a NaN stays NaN).
+    const Float4 clamped = one < cosine ? one : cosine;
+    bounds += (Float4)((Int4)squareRoot((one - clamped) * 2.0f) & inlier);
+  }
+  // Each root within half an ulp, acosf within one, the lanes' float sums within one ulp per
+  // term: a relative margin of 2^-22 per block and a few more keeps the bound below the sum.
+  const double margin = 1.0 - std::ldexp(static_cast<double>(points_.x.size() + 4), -22);
+  angle_bound = margin * ((static_cast<double>(bounds[0]) + static_cast<double>(bounds[1])) +
+                          (static_cast<double>(bounds[2]) + static_cast<double>(bounds[3])));
+  return counts[0] + counts[1] + counts[2] + counts[3];
+}
+
 double PlaneSupport::sumOfInlierAngles() const {
   // Each angle is a float: 0 or at least acos(1 - 2^-24) > 2^-12, so a multiple of 2^-35, and
   // at most pi < 4. Their sum is exact in a double (53 bits) below 2^18, i.e. for up to 2^16
