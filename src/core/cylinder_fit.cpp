@@ -7,6 +7,10 @@
 
 #include <Eigen/Dense>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -63,6 +67,11 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
                                    int max_iterations) {
   Eigen::VectorXd residuals(n_residuals), trial_residuals(n_residuals);
   Eigen::MatrixXd jacobian(n_residuals, x.size()), trial_jacobian(n_residuals, x.size());
+  // The small systems' storage, kept across iterations and trials (their allocations cost as
+  // much as the products of a few hundred residuals).
+  Eigen::MatrixXd jtj(x.size(), x.size()), damped(x.size(), x.size());
+  Eigen::VectorXd gradient(x.size()), step(x.size()), trial(x.size());
+  Eigen::LDLT<Eigen::MatrixXd> solver(x.size());
   evaluate(x, residuals, &jacobian);
   double cost = residuals.squaredNorm();
   double lambda = 1e-3;
@@ -70,27 +79,26 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
     // Each entry one dot product of two columns: with 3-4 parameters and ~10^3 residuals,
     // Eigen's blocked matrix product spent most of its instructions packing the operands. The
     // lower triangle mirrors the upper one (the same products, summed in the same order).
-    Eigen::MatrixXd jtj(x.size(), x.size());
     for (Eigen::Index row = 0; row < x.size(); ++row) {
       for (Eigen::Index column = row; column < x.size(); ++column) {
         jtj(row, column) = jtj(column, row) = jacobian.col(row).dot(jacobian.col(column));
       }
     }
-    const Eigen::VectorXd gradient = jacobian.transpose().lazyProduct(residuals);
+    gradient.noalias() = jacobian.transpose().lazyProduct(residuals);
     bool improved = false;
     while (lambda < 1e12) {
-      Eigen::MatrixXd damped = jtj;
+      damped = jtj;
       damped.diagonal() += lambda * (jtj.diagonal().array() + 1e-12).matrix();
-      const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
+      step = solver.compute(damped).solve(-gradient);
       if (!step.allFinite()) break;
-      const Eigen::VectorXd trial = x + step;
+      trial = x + step;
       // With its Jacobian: most trials are taken (~4 in 5), and the Jacobian costs less than
       // evaluating the taken point's residuals again.
       evaluate(trial, trial_residuals, &trial_jacobian);
       const double trial_cost = trial_residuals.squaredNorm();
       if (std::isfinite(trial_cost) && trial_cost <= cost) {
         const bool converged = step.norm() <= kConvergedStep * (1.0 + x.norm());
-        x = trial;
+        x.swap(trial);
         cost = trial_cost;
         residuals.swap(trial_residuals);
         jacobian.swap(trial_jacobian);
@@ -163,27 +171,64 @@ struct RoundWallResiduals {
   const Eigen::VectorXd* weights = nullptr;
   void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
                   Eigen::MatrixXd* jacobian) const {
-    const Vec2d centre(x[0], x[1]);
     double* const column[4] = {jacobian ? jacobian->col(0).data() : nullptr,
                                jacobian ? jacobian->col(1).data() : nullptr,
                                jacobian ? jacobian->col(2).data() : nullptr,
                                jacobian && heights ? jacobian->col(3).data() : nullptr};
-    for (size_t i = 0; i < points.size(); ++i) {
+    size_t i = 0;
+#ifdef __SSE2__
+    i = evaluatePairs(x, residuals.data(), column);
+#endif
+    const Vec2d centre(x[0], x[1]);
+    for (; i < points.size(); ++i) {
       const Vec2d offset = points[i] - centre;
       const double distance = offset.norm();
       const double height = heights ? (*heights)[i] : 0.0;
       const double weight = weights ? (*weights)[i] : 1.0;
       residuals[i] = (distance - (heights ? x[2] + x[3] * height : x[2])) * weight;
-      if (jacobian) {
+      if (column[0]) {
         // At the centre the direction is undefined; any unit vector keeps J finite.
         const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
         column[0][i] = -direction.x() * weight;
         column[1][i] = -direction.y() * weight;
         column[2][i] = -1.0 * weight;
-        if (heights) column[3][i] = -height * weight;
+        if (column[3]) column[3][i] = -height * weight;
       }
     }
   }
+
+#ifdef __SSE2__
+  // The loop above two points at a time (Levenberg-Marquardt spends most of its instructions
+  // here), each lane with its double operations in its order: the same bits, as SSE2's root
+  // and division are correctly rounded like std::sqrt and /. Returns the points done.
+  size_t evaluatePairs(const Eigen::VectorXd& x, double* residuals, double* const column[4]) const {
+    const __m128d cx = _mm_set1_pd(x[0]), cy = _mm_set1_pd(x[1]), r0 = _mm_set1_pd(x[2]);
+    const __m128d slope = _mm_set1_pd(heights ? x[3] : 0.0);
+    const __m128d one = _mm_set1_pd(1.0), tiny = _mm_set1_pd(1e-12), sign = _mm_set1_pd(-0.0);
+    size_t i = 0;
+    for (; i + 1 < points.size(); i += 2) {
+      const __m128d first = _mm_loadu_pd(points[i].data());
+      const __m128d second = _mm_loadu_pd(points[i + 1].data());
+      const __m128d dx = _mm_sub_pd(_mm_unpacklo_pd(first, second), cx);
+      const __m128d dy = _mm_sub_pd(_mm_unpackhi_pd(first, second), cy);
+      const __m128d distance = _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)));
+      const __m128d height = heights ? _mm_loadu_pd(&(*heights)[i]) : _mm_setzero_pd();
+      const __m128d weight = weights ? _mm_loadu_pd(&(*weights)[i]) : one;
+      const __m128d radius = heights ? _mm_add_pd(r0, _mm_mul_pd(slope, height)) : r0;
+      _mm_storeu_pd(residuals + i, _mm_mul_pd(_mm_sub_pd(distance, radius), weight));
+      if (!column[0]) continue;
+      const __m128d away = _mm_cmpgt_pd(distance, tiny);  // false for NaN, as the scalar test
+      const __m128d ux =
+          _mm_or_pd(_mm_and_pd(away, _mm_div_pd(dx, distance)), _mm_andnot_pd(away, one));
+      const __m128d uy = _mm_and_pd(away, _mm_div_pd(dy, distance));
+      _mm_storeu_pd(column[0] + i, _mm_mul_pd(_mm_xor_pd(ux, sign), weight));
+      _mm_storeu_pd(column[1] + i, _mm_mul_pd(_mm_xor_pd(uy, sign), weight));
+      _mm_storeu_pd(column[2] + i, _mm_mul_pd(_mm_xor_pd(one, sign), weight));
+      if (column[3]) _mm_storeu_pd(column[3] + i, _mm_mul_pd(_mm_xor_pd(height, sign), weight));
+    }
+    return i;
+  }
+#endif
 };
 
 std::vector<Vec2d> toDouble(const std::vector<Eigen::Vector2f>& points) {
