@@ -53,6 +53,7 @@ class PlaneSupport {
 
  private:
   static constexpr float kFarAway = 1e30f;
+  struct PlaneTest;
   // The sum of the last plane's inliers' angles (collect's `angle_sum`).
   double sumOfInlierAngles() const;
   std::vector<int> indices_;
