@@ -31,8 +31,11 @@ constexpr unsigned kRandomSeed = 20120715;  // fixed: the same cloud gives the s
 struct Candidate {
   Eigen::Vector3f normal;
   float d = 0.0f;
-  float mean_angle = 0.0f;  // mean angle between the support's point normals and the plane's
+  // Mean angle between the support's point normals and the plane's; until `exact`, a lower
+  // bound of it (PlaneSupport::countWithAngleBound).
+  float mean_angle = 0.0f;
   int support = 0;
+  bool exact = false;
 };
 
 struct Face {
@@ -294,6 +297,18 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
     }
     return -1;
   };
+  // The queue ranks planes by their mean angles, but only the planes a box can still take need
+  // theirs exactly: a plane leaves the queue by its lower bound, and gets its exact mean angle
+  // and goes back in when the chosen planes still admit it. Once the top is exact it is the
+  // lowest mean angle left, so the planes are taken as by their exact mean angles alone (the
+  // acos of every inlier of ~250 planes per box cost 3.5 M instructions per object).
+  auto exactMeanAngle = [&](Candidate& candidate) {
+    double angle_sum = 0.0;
+    scoring_points.collect(candidate.normal, candidate.d, params.distance_threshold, cos_threshold,
+                           nullptr, &angle_sum, min_scoring_support);
+    candidate.mean_angle = static_cast<float>(angle_sum / candidate.support);
+    candidate.exact = true;
+  };
   auto byMeanAngle = [](const Candidate& a, const Candidate& b) {
     return a.mean_angle > b.mean_angle;  // top of the queue: the lowest mean angle
   };
@@ -312,11 +327,13 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
     // A plane disagreeing with its own sample's normals cannot gather a consistent support.
     if (std::abs(normal.dot(n0)) <= cos_threshold) continue;
     const float d = -normal.dot(p0);
-    double angle_sum = 0.0;
-    const int support = scoring_points.collect(normal, d, params.distance_threshold, cos_threshold,
-                                               nullptr, &angle_sum, min_scoring_support);
+    double angle_bound = 0.0;
+    const int support = scoring_points.countWithAngleBound(normal, d, params.distance_threshold,
+                                                           cos_threshold, angle_bound);
     if (support < min_scoring_support) continue;
-    queue.push({normal, d, static_cast<float>(angle_sum / support), support});
+    Candidate candidate{normal, d, static_cast<float>(angle_bound / support), support};
+    if (!std::isfinite(candidate.mean_angle)) exactMeanAngle(candidate);
+    queue.push(candidate);
   }
   if (queue.empty()) {
     return failure(fit, "no plane with at least " +
@@ -329,9 +346,14 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
   PlaneSupport all_points(object, all);
   const int max_planes = std::clamp(params.max_planes, 1, 3);
   while (!queue.empty() && static_cast<int>(faces.size()) < max_planes) {
-    const Candidate candidate = queue.top();
+    Candidate candidate = queue.top();
     queue.pop();
     if (!consistentPlane(candidate.normal, faces, up, params)) continue;
+    if (!candidate.exact) {
+      exactMeanAngle(candidate);
+      queue.push(candidate);
+      continue;
+    }
     Face face;
     face.normal = candidate.normal;
     face.d = candidate.d;

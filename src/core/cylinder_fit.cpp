@@ -7,6 +7,10 @@
 
 #include <Eigen/Dense>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -63,6 +67,11 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
                                    int max_iterations) {
   Eigen::VectorXd residuals(n_residuals), trial_residuals(n_residuals);
   Eigen::MatrixXd jacobian(n_residuals, x.size()), trial_jacobian(n_residuals, x.size());
+  // The small systems' storage, kept across iterations and trials (their allocations cost as
+  // much as the products of a few hundred residuals).
+  Eigen::MatrixXd jtj(x.size(), x.size()), damped(x.size(), x.size());
+  Eigen::VectorXd gradient(x.size()), step(x.size()), trial(x.size());
+  Eigen::LDLT<Eigen::MatrixXd> solver(x.size());
   evaluate(x, residuals, &jacobian);
   double cost = residuals.squaredNorm();
   double lambda = 1e-3;
@@ -70,27 +79,26 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
     // Each entry one dot product of two columns: with 3-4 parameters and ~10^3 residuals,
     // Eigen's blocked matrix product spent most of its instructions packing the operands. The
     // lower triangle mirrors the upper one (the same products, summed in the same order).
-    Eigen::MatrixXd jtj(x.size(), x.size());
     for (Eigen::Index row = 0; row < x.size(); ++row) {
       for (Eigen::Index column = row; column < x.size(); ++column) {
         jtj(row, column) = jtj(column, row) = jacobian.col(row).dot(jacobian.col(column));
       }
     }
-    const Eigen::VectorXd gradient = jacobian.transpose().lazyProduct(residuals);
+    gradient.noalias() = jacobian.transpose().lazyProduct(residuals);
     bool improved = false;
     while (lambda < 1e12) {
-      Eigen::MatrixXd damped = jtj;
+      damped = jtj;
       damped.diagonal() += lambda * (jtj.diagonal().array() + 1e-12).matrix();
-      const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
+      step = solver.compute(damped).solve(-gradient);
       if (!step.allFinite()) break;
-      const Eigen::VectorXd trial = x + step;
+      trial = x + step;
       // With its Jacobian: most trials are taken (~4 in 5), and the Jacobian costs less than
       // evaluating the taken point's residuals again.
       evaluate(trial, trial_residuals, &trial_jacobian);
       const double trial_cost = trial_residuals.squaredNorm();
       if (std::isfinite(trial_cost) && trial_cost <= cost) {
         const bool converged = step.norm() <= kConvergedStep * (1.0 + x.norm());
-        x = trial;
+        x.swap(trial);
         cost = trial_cost;
         residuals.swap(trial_residuals);
         jacobian.swap(trial_jacobian);
@@ -163,27 +171,75 @@ struct RoundWallResiduals {
   const Eigen::VectorXd* weights = nullptr;
   void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
                   Eigen::MatrixXd* jacobian) const {
-    const Vec2d centre(x[0], x[1]);
     double* const column[4] = {jacobian ? jacobian->col(0).data() : nullptr,
                                jacobian ? jacobian->col(1).data() : nullptr,
                                jacobian ? jacobian->col(2).data() : nullptr,
                                jacobian && heights ? jacobian->col(3).data() : nullptr};
-    for (size_t i = 0; i < points.size(); ++i) {
+    size_t i = 0;
+#ifdef __SSE2__
+    // The model's options chosen once, outside the loop over the points.
+    if (heights) {
+      i = weights ? evaluatePairs<true, true>(x, residuals.data(), column)
+                  : evaluatePairs<true, false>(x, residuals.data(), column);
+    } else {
+      i = weights ? evaluatePairs<false, true>(x, residuals.data(), column)
+                  : evaluatePairs<false, false>(x, residuals.data(), column);
+    }
+#endif
+    const Vec2d centre(x[0], x[1]);
+    for (; i < points.size(); ++i) {
       const Vec2d offset = points[i] - centre;
       const double distance = offset.norm();
       const double height = heights ? (*heights)[i] : 0.0;
       const double weight = weights ? (*weights)[i] : 1.0;
       residuals[i] = (distance - (heights ? x[2] + x[3] * height : x[2])) * weight;
-      if (jacobian) {
+      if (column[0]) {
         // At the centre the direction is undefined; any unit vector keeps J finite.
         const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
         column[0][i] = -direction.x() * weight;
         column[1][i] = -direction.y() * weight;
         column[2][i] = -1.0 * weight;
-        if (heights) column[3][i] = -height * weight;
+        if (column[3]) column[3][i] = -height * weight;
       }
     }
   }
+
+#ifdef __SSE2__
+  // The loop above two points at a time (Levenberg-Marquardt spends most of its instructions
+  // here), each lane with its double operations in its order: the same bits, as SSE2's root
+  // and division are correctly rounded like std::sqrt and /. Returns the points done.
+  template <bool kHeights, bool kWeights>
+  size_t evaluatePairs(const Eigen::VectorXd& x, double* residuals, double* const column[4]) const {
+    const __m128d cx = _mm_set1_pd(x[0]), cy = _mm_set1_pd(x[1]), r0 = _mm_set1_pd(x[2]);
+    const __m128d slope = _mm_set1_pd(kHeights ? x[3] : 0.0);
+    const __m128d one = _mm_set1_pd(1.0), tiny = _mm_set1_pd(1e-12), sign = _mm_set1_pd(-0.0);
+    const double* const height_of = kHeights ? heights->data() : nullptr;
+    const double* const weight_of = kWeights ? weights->data() : nullptr;
+    const size_t pairs_end = points.size() & ~size_t{1};
+    size_t i = 0;
+    for (; i < pairs_end; i += 2) {
+      const __m128d first = _mm_loadu_pd(points[i].data());
+      const __m128d second = _mm_loadu_pd(points[i + 1].data());
+      const __m128d dx = _mm_sub_pd(_mm_unpacklo_pd(first, second), cx);
+      const __m128d dy = _mm_sub_pd(_mm_unpackhi_pd(first, second), cy);
+      const __m128d distance = _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)));
+      const __m128d height = kHeights ? _mm_loadu_pd(height_of + i) : _mm_setzero_pd();
+      const __m128d weight = kWeights ? _mm_loadu_pd(weight_of + i) : one;
+      const __m128d radius = kHeights ? _mm_add_pd(r0, _mm_mul_pd(slope, height)) : r0;
+      _mm_storeu_pd(residuals + i, _mm_mul_pd(_mm_sub_pd(distance, radius), weight));
+      if (!column[0]) continue;
+      const __m128d away = _mm_cmpgt_pd(distance, tiny);  // false for NaN, as the scalar test
+      const __m128d ux =
+          _mm_or_pd(_mm_and_pd(away, _mm_div_pd(dx, distance)), _mm_andnot_pd(away, one));
+      const __m128d uy = _mm_and_pd(away, _mm_div_pd(dy, distance));
+      _mm_storeu_pd(column[0] + i, _mm_mul_pd(_mm_xor_pd(ux, sign), weight));
+      _mm_storeu_pd(column[1] + i, _mm_mul_pd(_mm_xor_pd(uy, sign), weight));
+      _mm_storeu_pd(column[2] + i, _mm_mul_pd(_mm_xor_pd(one, sign), weight));
+      if (kHeights) _mm_storeu_pd(column[3] + i, _mm_mul_pd(_mm_xor_pd(height, sign), weight));
+    }
+    return i;
+  }
+#endif
 };
 
 std::vector<Vec2d> toDouble(const std::vector<Eigen::Vector2f>& points) {
@@ -776,53 +832,97 @@ float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point)
                 segmentDistance(radial, solid.top_rim, solid.top_centre)}));
 }
 
-float distanceToVisibleRoundSurface(const ShapeFit& round, const Eigen::Vector3f& point) {
-  const RoundSolid solid(round);
-  const Vec3d q = solid.local(point);
-  const Vec3d camera = solid.local(Eigen::Vector3f::Zero());
-  const Vec2d radial(q.head<2>().norm(), q.z());
-  const double slope = (solid.top_rim.x() - solid.bottom_rim.x()) / solid.height;
-  double distance = std::numeric_limits<double>::infinity();
-  if (camera.z() > solid.height) {  // the top disc faces the camera
-    distance = segmentDistance(radial, solid.top_rim, solid.top_centre);
-  }
-  // A generatrix at azimuth phi faces the camera where cos(phi - phi_camera) > (r(z) + slope
-  // (z_camera - z)) / rho_camera (outward normal ~ (cos phi, sin phi, -slope)); taken half-way
-  // up, which is exact for a cylinder.
-  const double rho_camera = camera.head<2>().norm();
-  const double bound = rho_camera > 0.0 ? (0.5 * (solid.bottom_rim.x() + solid.top_rim.x()) +
-                                           slope * (camera.z() - 0.5 * solid.height)) /
-                                              rho_camera
-                                        : 2.0;
-  // An open container (a mug, a bowl) shows its inside over the rim: a point inside the solid
-  // whose line of sight leaves through the top disc lies on the inner wall or the floor. PCL's
-  // mug, seen from above, was a box without this (inside points 14 mm RMS off either model).
-  const double radius_here = solid.bottom_rim.x() + slope * q.z();
-  if (camera.z() > solid.height && q.z() > 0.0 && q.z() < solid.height &&
-      radial.x() < radius_here) {
-    const Vec3d exit = q + (solid.height - q.z()) / (camera.z() - q.z()) * (camera - q);
-    if (exit.head<2>().norm() < solid.top_rim.x()) {
-      distance =
-          std::min({distance, segmentDistance(radial, solid.bottom_rim, solid.top_rim), q.z()});
-    }
-  }
-  if (bound < 1.0) {
-    const double half_angle = std::acos(std::max(bound, -1.0));
-    const double camera_azimuth = std::atan2(camera.y(), camera.x());
-    const double offset = std::remainder(std::atan2(q.y(), q.x()) - camera_azimuth, 2.0 * kPi);
-    if (std::abs(offset) <= half_angle) {
-      distance = std::min(distance, segmentDistance(radial, solid.bottom_rim, solid.top_rim));
-    } else {
-      // Nearest visible wall: the silhouette generatrix on the point's side.
-      const double azimuth = camera_azimuth + std::copysign(half_angle, offset);
+namespace {
+
+// What distanceToVisibleRoundSurface needs of the solid and the camera, worked out once for all
+// the points measured against one solid (the residual of a fit measures every point of its
+// cluster): the same operations per point as for one.
+struct VisibleRoundSolid {
+  explicit VisibleRoundSolid(const ShapeFit& round)
+      : solid(round),
+        camera(solid.local(Eigen::Vector3f::Zero())),
+        slope((solid.top_rim.x() - solid.bottom_rim.x()) / solid.height) {
+    // A generatrix at azimuth phi faces the camera where cos(phi - phi_camera) > (r(z) + slope
+    // (z_camera - z)) / rho_camera (outward normal ~ (cos phi, sin phi, -slope)); taken half-way
+    // up, which is exact for a cylinder.
+    const double rho_camera = camera.head<2>().norm();
+    const double bound = rho_camera > 0.0 ? (0.5 * (solid.bottom_rim.x() + solid.top_rim.x()) +
+                                             slope * (camera.z() - 0.5 * solid.height)) /
+                                                rho_camera
+                                          : 2.0;
+    wall_seen = bound < 1.0;
+    if (!wall_seen) return;
+    half_angle = std::acos(std::max(bound, -1.0));
+    camera_azimuth = std::atan2(camera.y(), camera.x());
+    for (int side = 0; side < 2; ++side) {
+      // The silhouette generatrix on the side of a negative (0) or positive (1) offset.
+      const double azimuth = camera_azimuth + std::copysign(half_angle, side ? 1.0 : -1.0);
       const Vec3d direction(std::cos(azimuth), std::sin(azimuth), 0.0);
-      const Vec3d bottom = solid.bottom_rim.x() * direction;
-      const Vec3d top = solid.top_rim.x() * direction + Vec3d(0.0, 0.0, solid.height);
-      distance = std::min(distance, segmentDistance(q, bottom, top));
+      silhouette_bottom[side] = solid.bottom_rim.x() * direction;
+      silhouette_top[side] = solid.top_rim.x() * direction + Vec3d(0.0, 0.0, solid.height);
     }
   }
+
+  // Infinite where no visible part is found.
+  double distance(const Eigen::Vector3f& point) const {
+    const Vec3d q = solid.local(point);
+    const Vec2d radial(q.head<2>().norm(), q.z());
+    double distance = std::numeric_limits<double>::infinity();
+    if (camera.z() > solid.height) {  // the top disc faces the camera
+      distance = segmentDistance(radial, solid.top_rim, solid.top_centre);
+    }
+    // An open container (a mug, a bowl) shows its inside over the rim: a point inside the solid
+    // whose line of sight leaves through the top disc lies on the inner wall or the floor. PCL's
+    // mug, seen from above, was a box without this (inside points 14 mm RMS off either model).
+    const double radius_here = solid.bottom_rim.x() + slope * q.z();
+    if (camera.z() > solid.height && q.z() > 0.0 && q.z() < solid.height &&
+        radial.x() < radius_here) {
+      const Vec3d exit = q + (solid.height - q.z()) / (camera.z() - q.z()) * (camera - q);
+      if (exit.head<2>().norm() < solid.top_rim.x()) {
+        distance =
+            std::min({distance, segmentDistance(radial, solid.bottom_rim, solid.top_rim), q.z()});
+      }
+    }
+    if (wall_seen) {
+      const double offset = std::remainder(std::atan2(q.y(), q.x()) - camera_azimuth, 2.0 * kPi);
+      if (std::abs(offset) <= half_angle) {
+        distance = std::min(distance, segmentDistance(radial, solid.bottom_rim, solid.top_rim));
+      } else {
+        // Nearest visible wall: the silhouette generatrix on the point's side.
+        const int side = std::signbit(offset) ? 0 : 1;
+        distance =
+            std::min(distance, segmentDistance(q, silhouette_bottom[side], silhouette_top[side]));
+      }
+    }
+    return distance;
+  }
+
+  RoundSolid solid;
+  Vec3d camera;
+  double slope;
+  bool wall_seen = false;
+  double half_angle = 0.0, camera_azimuth = 0.0;
+  Vec3d silhouette_bottom[2], silhouette_top[2];
+};
+
+}  // namespace
+
+float distanceToVisibleRoundSurface(const ShapeFit& round, const Eigen::Vector3f& point) {
+  const double distance = VisibleRoundSolid(round).distance(point);
   return std::isfinite(distance) ? static_cast<float>(distance)
                                  : distanceToRoundObject(round, point);
+}
+
+void distancesToVisibleRoundSurface(const ShapeFit& round, const NormalCloud& points,
+                                    std::vector<float>& distances) {
+  const VisibleRoundSolid visible(round);
+  distances.clear();
+  distances.reserve(points.size());
+  for (const auto& p : points.points) {
+    const double distance = visible.distance(p.getVector3fMap());
+    distances.push_back(std::isfinite(distance) ? static_cast<float>(distance)
+                                                : distanceToRoundObject(round, p.getVector3fMap()));
+  }
 }
 
 // ---- a cylinder lying on its side (beyond the paper) ----

@@ -42,22 +42,36 @@ PlaneSupport::PlaneSupport(const NormalCloud& cloud, const std::vector<int>& ind
   cosine_.resize(points_.x.size());
 }
 
+// The inlier test of a plane, four points at a time: distance below the threshold AND |cosine|
+// of the point normal above the threshold.
+struct PlaneSupport::PlaneTest {
+  PlaneTest(const Eigen::Vector3f& normal, float d, float distance_threshold, float cos_threshold)
+      : a(broadcast(normal.x())),
+        b(broadcast(normal.y())),
+        c(broadcast(normal.z())),
+        offset(broadcast(d)),
+        max_distance(broadcast(distance_threshold)),
+        min_cosine(broadcast(cos_threshold)) {}
+  // The lanes of block k that are inliers (all bits set) and its |cosines| (`cosine`).
+  Int4 inliers(const PlaneSupport& points, size_t k, Float4& cosine) const {
+    const Float4 distance = magnitude(
+        (a * points.points_.x[k] + (b * points.points_.y[k] + c * points.points_.z[k])) + offset);
+    cosine =
+        magnitude(a * points.normals_.x[k] + (b * points.normals_.y[k] + c * points.normals_.z[k]));
+    // Negated like `if (distance >= threshold) skip`, so that NaN passes alike.
+    return ~(distance >= max_distance) & ~(cosine <= min_cosine);
+  }
+  Float4 a, b, c, offset, max_distance, min_cosine;
+};
+
 int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance_threshold,
                           float cos_threshold, std::vector<int>* support, double* angle_sum,
                           int min_count) {
-  const Float4 a = broadcast(normal.x()), b = broadcast(normal.y()), c = broadcast(normal.z());
-  const Float4 offset = broadcast(d);
-  const Float4 max_distance = broadcast(distance_threshold);
-  const Float4 min_cosine = broadcast(cos_threshold);
+  const PlaneTest test(normal, d, distance_threshold, cos_threshold);
   Int4 counts = {};
   for (size_t k = 0; k < points_.x.size(); ++k) {
-    const Float4 distance =
-        magnitude((a * points_.x[k] + (b * points_.y[k] + c * points_.z[k])) + offset);
-    const Float4 cosine = magnitude(a * normals_.x[k] + (b * normals_.y[k] + c * normals_.z[k]));
-    // Negated like `if (distance >= threshold) skip`, so that NaN passes alike.
-    const Int4 inlier = ~(distance >= max_distance) & ~(cosine <= min_cosine);
+    const Int4 inlier = test.inliers(*this, k, cosine_[k]);
     inlier_lanes_[k] = lanesOf(inlier);
-    cosine_[k] = cosine;
     counts -= inlier;
   }
   const int count = counts[0] + counts[1] + counts[2] + counts[3];
@@ -70,6 +84,29 @@ int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance
   }
   if (angle_sum && count >= min_count) *angle_sum += sumOfInlierAngles();
   return count;
+}
+
+int PlaneSupport::countWithAngleBound(const Eigen::Vector3f& normal, float d,
+                                      float distance_threshold, float cos_threshold,
+                                      double& angle_bound) {
+  const PlaneTest test(normal, d, distance_threshold, cos_threshold);
+  const Float4 one = broadcast(1.0f);
+  Int4 counts = {};
+  Float4 bounds = {};
+  for (size_t k = 0; k < points_.x.size(); ++k) {
+    Float4 cosine;
+    const Int4 inlier = test.inliers(*this, k, cosine);
+    counts -= inlier;
+    // 1 - c is exact for c in [0.5, 1] (the inliers' cosines; a NaN stays NaN).
+    const Float4 clamped = one < cosine ? one : cosine;
+    bounds += (Float4)((Int4)squareRoot((one - clamped) * 2.0f) & inlier);
+  }
+  // Each root within half an ulp, acosf within one, the lanes' float sums within one ulp per
+  // term: a relative margin of 2^-22 per block and a few more keeps the bound below the sum.
+  const double margin = 1.0 - std::ldexp(static_cast<double>(points_.x.size() + 4), -22);
+  angle_bound = margin * ((static_cast<double>(bounds[0]) + static_cast<double>(bounds[1])) +
+                          (static_cast<double>(bounds[2]) + static_cast<double>(bounds[3])));
+  return counts[0] + counts[1] + counts[2] + counts[3];
 }
 
 double PlaneSupport::sumOfInlierAngles() const {

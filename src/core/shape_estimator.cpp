@@ -71,13 +71,14 @@ constexpr float kComparedFraction = 0.9f;
 // points lay within 0.3-0.5 mm RMS of the boxes' surfaces and 1.1-14 mm of the cylinders').
 float visibleSurfaceResidual(const ShapeFit& fit, const NormalCloud& cluster) {
   std::vector<float> squared;
-  squared.reserve(cluster.size());
-  for (const auto& p : cluster.points) {
-    const float distance = fit.type == ShapeType::Cube
-                               ? distanceToVisibleBoxSurface(fit, p.getVector3fMap())
-                               : distanceToVisibleRoundSurface(fit, p.getVector3fMap());
-    squared.push_back(distance * distance);
+  if (fit.type == ShapeType::Cube) {
+    squared.reserve(cluster.size());
+    for (const auto& p : cluster.points)
+      squared.push_back(distanceToVisibleBoxSurface(fit, p.getVector3fMap()));
+  } else {
+    distancesToVisibleRoundSurface(fit, cluster, squared);
   }
+  for (float& distance : squared) distance *= distance;
   if (squared.empty()) return 0.0f;
   const size_t kept = std::max<size_t>(
       1, static_cast<size_t>(kComparedFraction * static_cast<float>(squared.size())));

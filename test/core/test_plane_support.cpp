@@ -125,6 +125,11 @@ void expectPlainLoopResults(float cos_threshold, int cloud_points = 1003, int tr
     double angles_only = 0.0;
     EXPECT_EQ(support.collect(normal, d, kDistance, cos_threshold, nullptr, &angles_only), count);
     EXPECT_EQ(angles_only, expected_sum);
+    if (cos_threshold < 0.5f) continue;  // the bound holds for the inliers' cosines in [0.5, 1]
+    double bound = -1.0;
+    EXPECT_EQ(support.countWithAngleBound(normal, d, kDistance, cos_threshold, bound), count);
+    EXPECT_LE(bound, expected_sum);
+    EXPECT_GE(bound, 0.98 * expected_sum);  // angles up to the 36-degree threshold: >= 0.984
   }
 }
 
@@ -136,6 +141,29 @@ TEST(PlaneSupport, MatchesThePlainLoopBitForBitWithWideAngles) {
 
 TEST(PlaneSupport, MatchesThePlainLoopBitForBitOnManyPoints) {
   expectPlainLoopResults(kCosThreshold, 140001, 4);  // every second: 70001 points
+}
+
+// Where the root and the acos agree to the float (cosines next to 1: 0.99999994 gives
+// 3.4526698e-4 both ways), and for cosines rounded above 1 (angle 0), the bound stays at or
+// below the angles' sum; at 30 degrees it lies within 1.2 % of it.
+TEST(PlaneSupport, AngleBoundStaysBelowTheSumOfTheAngles) {
+  const float next_to_one = std::nextafter(1.0f, 0.0f);
+  const Eigen::Vector3f tilted(0.0f, std::sqrt(1.0f - next_to_one * next_to_one), next_to_one);
+  for (const Eigen::Vector3f& normal :
+       {tilted, Eigen::Vector3f(0.0f, 0.5f, std::sqrt(0.75f)), Eigen::Vector3f(kUp)}) {
+    NormalCloud cloud;
+    for (int i = 0; i < 4001; ++i) {
+      cloud.push_back(pointWithNormal({0.0001f * i, 0.0f, 0.5f}, normal));
+    }
+    std::vector<int> indices(cloud.size());
+    for (size_t i = 0; i < indices.size(); ++i) indices[i] = static_cast<int>(i);
+    PlaneSupport support(cloud, indices);
+    double sum = 0.0, bound = -1.0;
+    ASSERT_EQ(support.collect(kUp, -0.5f, kDistance, kCosThreshold, nullptr, &sum), 4001);
+    ASSERT_EQ(support.countWithAngleBound(kUp, -0.5f, kDistance, kCosThreshold, bound), 4001);
+    EXPECT_LE(bound, sum);
+    EXPECT_GE(bound, 0.988 * sum);
+  }
 }
 
 TEST(PointsNearPlane, KeepsThePointsWithinTheDistanceInTheOrderGiven) {

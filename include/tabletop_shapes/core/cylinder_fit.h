@@ -46,5 +46,9 @@ float distanceToRoundObject(const ShapeFit& round, const Eigen::Vector3f& point)
 // side wall facing it and the top disc when the camera is above it. A point behind the
 // visible surface (seen through the solid) or beside a solid too small is far from it.
 float distanceToVisibleRoundSurface(const ShapeFit& round, const Eigen::Vector3f& point);
+// The same for every point of `points`, into `distances` (the solid's view from the camera
+// worked out once).
+void distancesToVisibleRoundSurface(const ShapeFit& round, const NormalCloud& points,
+                                    std::vector<float>& distances);
 
 }  // namespace tabletop_shapes
