@@ -325,7 +325,12 @@ void GridSearch<PointT>::forEachNearestK(
             const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
             // 1e-4 relative slack for the float rounding of the distances.
             const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
-            if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
+            // A surface point's k-th distance is near its neighbour's: a ball a little larger
+            // holds k candidates most times, fewer than the triangle bound's to select among
+            // (1.15: the fewest instructions of 1.05-1.4 on the 4 and 16-object speed scenes).
+            const float guess = std::min(reach, previous_kth * 1.15f);
+            if (guess * guess < covered_squared) kept = keepWithin(guess * guess);
+            if (kept < wanted && reach * reach < covered_squared) kept = keepWithin(reach * reach);
           }
           if (kept < wanted) kept = keepWithin(covered_squared);
           if (kept >= wanted) {
