@@ -1164,18 +1164,20 @@ bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& pl
   Eigen::Vector3d mean(sum_xy[0], sum_xy[1], sum_z);
   mean /= static_cast<double>(count);
   const Pair mean_xy = {mean.x(), mean.y()};
-  Pair xx_xy = {0.0, 0.0}, yy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
+  // Paired so that two of the three products need no lane shuffle of their own.
+  Pair xx_yy = {0.0, 0.0}, xy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
   for (int i : indices) {
     const Point& p = points[i];
     if (!finite(p)) continue;
     const Pair xy = Pair{p.x, p.y} - mean_xy;
     const double x = xy[0], y = xy[1], z = p.z - mean.z();
-    xx_xy += Pair{x, x} * xy;
-    yy_yz += Pair{y, y} * Pair{y, z};
-    xz_zz += Pair{x, z} * Pair{z, z};
+    const Pair zz = {z, z};
+    xx_yy += xy * xy;
+    xy_yz += xy * Pair{y, z};
+    xz_zz += Pair{x, z} * zz;
   }
   Eigen::Matrix3d scatter;
-  scatter << xx_xy[0], xx_xy[1], xz_zz[0], xx_xy[1], yy_yz[0], yy_yz[1], xz_zz[0], yy_yz[1],
+  scatter << xx_yy[0], xy_yz[0], xz_zz[0], xy_yz[0], xx_yy[1], xy_yz[1], xz_zz[0], xy_yz[1],
       xz_zz[1];
 
   // The fixed coefficient: the normal component that is largest for these points (from the
