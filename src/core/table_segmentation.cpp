@@ -966,11 +966,10 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
   const Plane expected{up, params.camera_height - up.dot(eye)};
   const float band = params.camera_height_tolerance + params.distance_threshold;
   std::vector<int> band_points;
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (std::abs(expected.signedDistance(cloud[i].getVector3fMap())) <= band) {
-      band_points.push_back(static_cast<int>(i));
-    }
-  }
+  forEachPointInBand(cloud, expected, -band, band, true, [&](int i) {
+    band_points.push_back(i);
+    return true;
+  });
   return band_points;
 }
 
@@ -1006,11 +1005,11 @@ void preferHigherLevelSupport(const Cloud& cloud, const TableParams& params,
   // of the searches again, and box tops at several levels the rest (rendered covered scene
   // 3877104083: floor, box tops, two refused planes; the table was no candidate).
   std::vector<int> points_high_above;
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (support.signedDistance(cloud[i].getVector3fMap()) >=
-        kTableAboveFloor - params.distance_threshold)
-      points_high_above.push_back(static_cast<int>(i));
-  }
+  forEachPointInBand(cloud, support, kTableAboveFloor - params.distance_threshold,
+                     std::numeric_limits<float>::infinity(), true, [&](int i) {
+                       points_high_above.push_back(i);
+                       return true;
+                     });
   std::vector<Candidate> level_candidates = findPlanes(
       cloud, params, NormalConstraint{up, kParallelCosine, false}, nullptr, &points_high_above);
   std::vector<int> level_objects;
