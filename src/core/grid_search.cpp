@@ -290,11 +290,9 @@ void GridSearch<PointT>::forEachNearestK(
     unsigned threads) const {
   if (k <= 0 || points_.empty()) return;
   const size_t wanted = static_cast<size_t>(k);
-  // A k-d tree, not the grid's growing rings, for the points whose k nearest the block does not
-  // hold: those are the sparse ones (flying pixels, edges), whose rings run through many empty
-  // cells before k points turn up. It finds the same distances (FLANN sums the squares in the
-  // same order); built once, at the first such point, and shared by the threads (its searches
-  // only read it).
+  // A k-d tree for the isolated points (below); it finds the same distances (FLANN sums the
+  // squares in the same order). Built once, at the first such point, and shared by the threads
+  // (its searches only read it).
   std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
   std::once_flag fallback_built;
   // Whole runs (cells) per part, so that each point sees the same previous point as in one pass.
@@ -328,7 +326,12 @@ void GridSearch<PointT>::forEachNearestK(
             const float dx = q.x - previous->x, dy = q.y - previous->y, dz = q.z - previous->z;
             // 1e-4 relative slack for the float rounding of the distances.
             const float reach = (previous_kth + std::sqrt(dx * dx + dy * dy + dz * dz)) * 1.0001f;
-            if (reach * reach < covered_squared) kept = keepWithin(reach * reach);
+            // A surface point's k-th distance is near its neighbour's: a ball a little larger
+            // holds k candidates most times, fewer than the triangle bound's to select among
+            // (1.15: the fewest instructions of 1.05-1.4 on the 4 and 16-object speed scenes).
+            const float guess = std::min(reach, previous_kth * 1.15f);
+            if (guess * guess < covered_squared) kept = keepWithin(guess * guess);
+            if (kept < wanted && reach * reach < covered_squared) kept = keepWithin(reach * reach);
           }
           if (kept < wanted) kept = keepWithin(covered_squared);
           if (kept >= wanted) {
@@ -336,8 +339,17 @@ void GridSearch<PointT>::forEachNearestK(
             nearest.assign(squared.begin(), squared.begin() + wanted);
             previous = &q;
             previous_kth = std::sqrt(nearest.back());
-            if (ascending) std::sort(nearest.begin(), nearest.end());
+          } else if (block_squared.size() >= wanted) {
+            // The block's k-th distance bounds the k nearest (an edge point's lie just beyond
+            // the block's cover): the cells that ball reaches beyond the block are added.
+            squared = block_squared;
+            std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
+            addBeyondTheBlock(q, std::sqrt(squared[wanted - 1]) * 1.0001f, squared);
+            std::nth_element(squared.begin(), squared.begin() + (wanted - 1), squared.end());
+            nearest.assign(squared.begin(), squared.begin() + wanted);
           } else {
+            // Fewer than k points in the block: an isolated point (flying pixels, a far
+            // edge), whose rings would run through many empty cells before k points turn up.
             std::call_once(fallback_built, [&] {
               fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
               fallback->setInputCloud(this->input_, this->indices_);
@@ -346,10 +358,40 @@ void GridSearch<PointT>::forEachNearestK(
             point.x = q.x, point.y = q.y, point.z = q.z;
             fallback->nearestKSearch(point, k, fallback_indices, nearest);
           }
+          if (ascending) std::sort(nearest.begin(), nearest.end());
           visit(q.index, nearest);
         });
   };
   forEachPart(threads, nearestInPart);
+}
+
+template <typename PointT>
+void GridSearch<PointT>::addBeyondTheBlock(const Entry& q, float reach,
+                                           std::vector<float>& squared) const {
+  const int cx = static_cast<int>(voxel_key::floorToInt(q.x * inv_cell_));
+  const int cy = static_cast<int>(voxel_key::floorToInt(q.y * inv_cell_));
+  const int cz = static_cast<int>(voxel_key::floorToInt(q.z * inv_cell_));
+  auto cellOf = [&](float v) { return static_cast<int>(voxel_key::floorToInt(v * inv_cell_)); };
+  const int x0 = std::max(cellOf(q.x - reach), low_[0]),
+            x1 = std::min(cellOf(q.x + reach), high_[0]);
+  const int y0 = std::max(cellOf(q.y - reach), low_[1]),
+            y1 = std::min(cellOf(q.y + reach), high_[1]);
+  const int z0 = std::max(cellOf(q.z - reach), low_[2]),
+            z1 = std::min(cellOf(q.z + reach), high_[2]);
+  for (int x = x0; x <= x1; ++x) {
+    for (int y = y0; y <= y1; ++y) {
+      for (int z = z0; z <= z1; ++z) {
+        if (std::abs(x - cx) <= 1 && std::abs(y - cy) <= 1 && std::abs(z - cz) <= 1) continue;
+        const Cell* cell = find(keyOf(x, y, z));
+        if (!cell) continue;
+        for (uint32_t i = cell->begin; i < cell->end; ++i) {
+          const Entry& e = points_[i];
+          const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
+          squared.push_back(dx * dx + dy * dy + dz * dz);
+        }
+      }
+    }
+  }
 }
 
 template <typename PointT>

@@ -4,6 +4,7 @@
 
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/densest_slab.h"
+#include "tabletop_shapes/core/float4.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/plane_support.h"
@@ -164,6 +165,43 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
   plane.normal = n / norm;
   plane.d = -plane.normal.dot(a);
   return true;
+}
+
+// Calls visit(i) for the points of `cloud` whose signed distance from `plane` lies within
+// [low, high] (inclusive) or (low, high), in the cloud's order, while visit returns true. The
+// distances of four points at a time come from lanes that make Plane::signedDistance's float
+// operations in its order (Eigen's dot: nx x + (ny y + nz z), then + d), so the same points
+// pass as with signedDistance; a frame's passes over its ~100k points (object points, points
+// below a candidate, the hidden table's) keep a few thousand. Points with a coordinate that is
+// not finite have no finite distance and never pass.
+template <typename Visit>
+void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float high,
+                        bool inclusive, Visit&& visit) {
+  auto inBand = [&](float distance) {
+    return inclusive ? distance >= low && distance <= high : distance > low && distance < high;
+  };
+  size_t i = 0;
+#ifdef __SSE__
+  const Float4 nx = broadcast(plane.normal.x()), ny = broadcast(plane.normal.y()),
+               nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
+  const Float4 lowest = broadcast(low), highest = broadcast(high);
+  for (; i + 4 <= cloud.size(); i += 4) {
+    __m128 x = _mm_loadu_ps(cloud[i].data), y = _mm_loadu_ps(cloud[i + 1].data),
+           z = _mm_loadu_ps(cloud[i + 2].data), w = _mm_loadu_ps(cloud[i + 3].data);
+    _MM_TRANSPOSE4_PS(x, y, z, w);  // x, y, z: the four points' coordinates
+    const Float4 distance = (nx * (Float4)x + (ny * (Float4)y + nz * (Float4)z)) + d;
+    const Int4 within = inclusive ? (distance >= lowest) & (distance <= highest)
+                                  : (distance > lowest) & (distance < highest);
+    for (unsigned lanes = lanesOf(within); lanes != 0; lanes &= lanes - 1) {
+      if (!visit(static_cast<int>(i) + __builtin_ctz(lanes))) return;
+    }
+  }
+#endif
+  for (; i < cloud.size(); ++i) {
+    if (inBand(plane.signedDistance(cloud[i].getVector3fMap())) && !visit(static_cast<int>(i))) {
+      return;
+    }
+  }
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -401,28 +439,26 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   bool span_computed = false;
   std::vector<int> edge_indices;
   std::vector<int> reaching_the_band;  // inner points near enough to link to the band
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3f p = cloud[i].getVector3fMap();
-    if (!p.allFinite()) continue;
-    const float height = candidate.plane.signedDistance(p);
-    if (height < params.min_height || height > params.max_height) continue;
-    const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-    const float inside = candidate.hull_edges.insideDistance(q);
-    if (inside >= params.hull_margin) {
-      if (inside < params.hull_margin + kEdgeLinkDistance) {
-        reaching_the_band.push_back(static_cast<int>(i));
-      }
-      indices.push_back(static_cast<int>(i));
-    } else if (inside >= 0.0f) {
-      edge_indices.push_back(static_cast<int>(i));
-    } else if (eye_height > 0.0f) {
-      if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
-      if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
-        reaching_the_band.push_back(static_cast<int>(i));
-        indices.push_back(static_cast<int>(i));
-      }
-    }
-  }
+  forEachPointInBand(
+      cloud, candidate.plane, params.min_height, params.max_height, true, [&](int i) {
+        const Eigen::Vector3f p = cloud[i].getVector3fMap();
+        const float height = candidate.plane.signedDistance(p);
+        const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+        const float inside = candidate.hull_edges.insideDistance(q);
+        if (inside >= params.hull_margin) {
+          if (inside < params.hull_margin + kEdgeLinkDistance) reaching_the_band.push_back(i);
+          indices.push_back(i);
+        } else if (inside >= 0.0f) {
+          edge_indices.push_back(i);
+        } else if (eye_height > 0.0f) {
+          if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
+          if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
+            reaching_the_band.push_back(i);
+            indices.push_back(i);
+          }
+        }
+        return true;
+      });
   if (edge_indices.empty() || reaching_the_band.empty()) return;
 
   // Grow from the inner points into the edge band.
@@ -516,18 +552,16 @@ void addPointsOverTheHiddenTable(const Cloud& cloud, const Candidate& table,
   std::vector<bool> taken(cloud.size(), false);
   for (int i : indices) taken[i] = true;
   std::vector<int> in_band, beyond;  // not taken, in the height band: in the edge band, beyond it
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (taken[i]) continue;
-    const Eigen::Vector3f p = cloud[i].getVector3fMap();
-    const float height = table.plane.signedDistance(p);
-    if (!(height >= params.min_height && height <= params.max_height)) continue;
-    const float inside = insideHull(p);
+  forEachPointInBand(cloud, table.plane, params.min_height, params.max_height, true, [&](int i) {
+    if (taken[i]) return true;
+    const float inside = insideHull(cloud[i].getVector3fMap());
     if (inside >= 0.0f && inside < params.hull_margin) {
-      in_band.push_back(static_cast<int>(i));
+      in_band.push_back(i);
     } else if (inside < 0.0f && inside >= -kBeyondHullReach) {
-      beyond.push_back(static_cast<int>(i));
+      beyond.push_back(i);
     }
-  }
+    return true;
+  });
   if (beyond.empty()) return;
   std::vector<int> linkable = in_band;
   const NearestRangeImage range_image(cloud, eye);
@@ -777,24 +811,23 @@ bool hasPointsBelow(const Cloud& cloud, const Candidate& candidate, const TableP
   const float inset = surface ? kBelowSupportInset : kBelowSliceInset;
   const float noise_at_one_metre = surface ? noise.at_one_metre : 0.0f;
   int below = 0;
-  for (const auto& point : cloud.points) {
-    const Eigen::Vector3f p = point.getVector3fMap();
+  // The depth band first (depth = -signed distance): most points are not in it, and need no
+  // noise depth.
+  const float least_depth = 2 * params.distance_threshold;
+  forEachPointInBand(cloud, candidate.plane, -kBelowSupportDepth, -least_depth, false, [&](int i) {
+    const Eigen::Vector3f p = cloud[i].getVector3fMap();
     const float depth = -candidate.plane.signedDistance(p);
-    // The depth band first: most points are not in it, and need no noise depth.
-    if (!(depth > 2 * params.distance_threshold && depth < kBelowSupportDepth)) continue;
     const float noise_depth = kBelowNoiseSigmas * noise_at_one_metre * (p - eye).squaredNorm();
-    if (!(depth > std::max(2 * params.distance_threshold, noise_depth))) continue;
+    if (!(depth > std::max(least_depth, noise_depth))) return true;
     // Where the line of sight eye -> p crosses the plane.
     const Eigen::Vector3f crossing = eye + (p - eye) * (eye_height / (eye_height + depth));
     const Eigen::Vector2f q(candidate.u.dot(crossing), candidate.v.dot(crossing));
     const Eigen::Vector2f foot(candidate.u.dot(p), candidate.v.dot(p));
-    if (candidate.hull_edges.insideBy(q, inset) &&
-        (!surface || candidate.hull_edges.insideBy(foot, inset)) &&
-        ++below >= kMinSupportedPoints) {
-      return true;
-    }
-  }
-  return false;
+    below += candidate.hull_edges.insideBy(q, inset) &&
+             (!surface || candidate.hull_edges.insideBy(foot, inset));
+    return below < kMinSupportedPoints;
+  });
+  return below >= kMinSupportedPoints;
 }
 
 float coverageOf(const Cloud& cloud, const Candidate& candidate) {
@@ -933,11 +966,10 @@ std::vector<int> pointsAtKnownHeight(const Cloud& cloud, const Eigen::Vector3f& 
   const Plane expected{up, params.camera_height - up.dot(eye)};
   const float band = params.camera_height_tolerance + params.distance_threshold;
   std::vector<int> band_points;
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (std::abs(expected.signedDistance(cloud[i].getVector3fMap())) <= band) {
-      band_points.push_back(static_cast<int>(i));
-    }
-  }
+  forEachPointInBand(cloud, expected, -band, band, true, [&](int i) {
+    band_points.push_back(i);
+    return true;
+  });
   return band_points;
 }
 
@@ -973,11 +1005,11 @@ void preferHigherLevelSupport(const Cloud& cloud, const TableParams& params,
   // of the searches again, and box tops at several levels the rest (rendered covered scene
   // 3877104083: floor, box tops, two refused planes; the table was no candidate).
   std::vector<int> points_high_above;
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (support.signedDistance(cloud[i].getVector3fMap()) >=
-        kTableAboveFloor - params.distance_threshold)
-      points_high_above.push_back(static_cast<int>(i));
-  }
+  forEachPointInBand(cloud, support, kTableAboveFloor - params.distance_threshold,
+                     std::numeric_limits<float>::infinity(), true, [&](int i) {
+                       points_high_above.push_back(i);
+                       return true;
+                     });
   std::vector<Candidate> level_candidates = findPlanes(
       cloud, params, NormalConstraint{up, kParallelCosine, false}, nullptr, &points_high_above);
   std::vector<int> level_objects;
@@ -1131,18 +1163,20 @@ bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& pl
   Eigen::Vector3d mean(sum_xy[0], sum_xy[1], sum_z);
   mean /= static_cast<double>(count);
   const Pair mean_xy = {mean.x(), mean.y()};
-  Pair xx_xy = {0.0, 0.0}, yy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
+  // Paired so that two of the three products need no lane shuffle of their own.
+  Pair xx_yy = {0.0, 0.0}, xy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
   for (int i : indices) {
     const Point& p = points[i];
     if (!finite(p)) continue;
     const Pair xy = Pair{p.x, p.y} - mean_xy;
     const double x = xy[0], y = xy[1], z = p.z - mean.z();
-    xx_xy += Pair{x, x} * xy;
-    yy_yz += Pair{y, y} * Pair{y, z};
-    xz_zz += Pair{x, z} * Pair{z, z};
+    const Pair zz = {z, z};
+    xx_yy += xy * xy;
+    xy_yz += xy * Pair{y, z};
+    xz_zz += Pair{x, z} * zz;
   }
   Eigen::Matrix3d scatter;
-  scatter << xx_xy[0], xx_xy[1], xz_zz[0], xx_xy[1], yy_yz[0], yy_yz[1], xz_zz[0], yy_yz[1],
+  scatter << xx_yy[0], xy_yz[0], xz_zz[0], xy_yz[0], xx_yy[1], xy_yz[1], xz_zz[0], xy_yz[1],
       xz_zz[1];
 
   // The fixed coefficient: the normal component that is largest for these points (from the

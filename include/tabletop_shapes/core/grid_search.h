@@ -100,6 +100,9 @@ class GridSearch : public pcl::search::Search<PointT> {
   // `threads` threads: one part for one thread, else 4 per thread, so that a thread slowed by
   // other work takes fewer.
   void forEachPart(unsigned threads, const std::function<void(size_t, size_t)>& visitPart) const;
+  // Appends to `squared` the squared distances from q to the points outside the 3 x 3 x 3 block
+  // of cells around q's cell that lie in cells within `reach` of q along each axis.
+  void addBeyondTheBlock(const Entry& q, float reach, std::vector<float>& squared) const;
   // Calls visit(entry) for every point in the cells within `ring` cells of (cx, cy, cz)
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>
