@@ -7,13 +7,15 @@
 // same surface. Dropping them keeps objects one behind the other from being bridged into one
 // cluster.
 //
-// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
-// on all cores decides each pixel (flying, out of range) and packs a kept point's integer voxel
-// coordinates into a 63-bit key; a single pass in image order then adds each point to its
-// voxel's running sum, found through an open-addressing hash table. Neighbouring pixels of an
-// organised cloud mostly share a voxel, so the left and the upper pixel's voxels are tried first.
-// The table and the sums are members and are reused from frame to frame; the output lists the
-// voxels in the order they are first met, so it is deterministic.
+// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): one pass over bands of image
+// rows on all cores decides each pixel (flying, out of range), packs a kept point's integer
+// voxel coordinates into a 63-bit key and adds the point to its voxel's running sum in the
+// band's own open-addressing hash table (neighbouring pixels of an organised cloud mostly share
+// a voxel, so the left and the upper pixel's voxels are tried first); the view bounds are
+// gathered on the way. The bands' tables are then merged into the first band's in image order.
+// The output lists the voxels in the order one pass over the image first meets them, and each
+// voxel's sum adds its points in image order, so the cloud is the same point for point whatever
+// the number of threads. The tables are members and are reused from frame to frame.
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/parallel.h"
@@ -34,10 +36,68 @@ inline bool finitePoint(float x, float y, float z) {
 
 }  // namespace
 
+void Preprocessor::VoxelTable::clear() {
+  slots_.assign(std::max<size_t>(slots_.size(), 1024), Slot{voxel_key::kEmpty, 0});
+  sums.clear();
+}
+
+void Preprocessor::VoxelTable::grow() {
+  const size_t capacity = 2 * slots_.size();
+  slots_.assign(capacity, Slot{voxel_key::kEmpty, 0});
+  for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
+    const uint64_t key = sums[voxel].key;
+    size_t slot = voxel_key::hash(key) & (capacity - 1);
+    while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
+    slots_[slot] = {key, voxel};
+  }
+}
+
+uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key) {
+  // At most half full.
+  size_t mask = slots_.size() - 1, slot = voxel_key::hash(key) & mask;
+  while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
+    slot = (slot + 1) & mask;
+  }
+  if (slots_[slot].key == voxel_key::kEmpty) {
+    if (2 * (sums.size() + 1) > slots_.size()) {
+      grow();
+      mask = slots_.size() - 1;
+      slot = voxel_key::hash(key) & mask;
+      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & mask;
+    }
+    slots_[slot] = {key, static_cast<uint32_t>(sums.size())};
+    sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0, 0});
+  }
+  return slots_[slot].voxel;
+}
+
+uint32_t Preprocessor::VoxelTable::find(uint64_t key) const {
+  const size_t mask = slots_.size() - 1;
+  size_t slot = voxel_key::hash(key) & mask;
+  while (slots_[slot].key != key) slot = (slot + 1) & mask;
+  return slots_[slot].voxel;
+}
+
+size_t Preprocessor::VoxelTable::bytes() const {
+  return slots_.capacity() * sizeof(Slot) + sums.capacity() * sizeof(VoxelSum);
+}
+
+void Preprocessor::VoxelTable::release() {
+  // 8x: a normal frame's own table is 2-4x its voxels; below 1 MB nothing is worth giving back.
+  constexpr size_t kSlack = 8, kKeepBytes = 1 << 20;
+  const size_t voxels = std::max<size_t>(sums.size(), 1024);
+  if (slots_.capacity() * sizeof(Slot) > kKeepBytes && slots_.capacity() > kSlack * voxels) {
+    std::vector<Slot>().swap(slots_);  // the next frame starts small and grows
+  }
+  if (sums.capacity() * sizeof(VoxelSum) > kKeepBytes && sums.capacity() > kSlack * voxels) {
+    sums.shrink_to_fit();
+  }
+}
+
 template <typename PointT>
-void Preprocessor::keyPixels(const pcl::PointCloud<PointT>& in, int width, int height,
-                             bool drop_flying) {
-  keys_.resize(in.points.size());
+void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool drop_flying,
+                            Band& band, ViewBoundsGatherer::Band* view) {
+  const int height = static_cast<int>(keys_.size() / width);
   const bool limit_range = params_.max_range > 0.0f;
   const float max_range_sq = params_.max_range * params_.max_range;
   const bool grid = params_.leaf_size > 0.0f;
@@ -78,88 +138,145 @@ void Preprocessor::keyPixels(const pcl::PointCloud<PointT>& in, int width, int h
     return any_neighbour;
   };
   const float limit = voxel_key::kLimit;
-  auto keyRows = [&](int first_row, int end_row) {
-    for (int v = first_row; v < end_row; ++v) {
-      const PointT* row = &in.points[static_cast<size_t>(v) * width];
-      uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
-      for (int u = 0; u < width; ++u) {
-        const PointT& p = row[u];
-        keys[u] = voxel_key::kEmpty;
-        // Depth cameras mark missing depth in z. The costly flying pixel test last.
-        if (!finitePoint(p.x, p.y, p.z)) continue;
-        if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) continue;
-        if (drop_flying && flying(row, u, v)) continue;
-        if (!grid) {
-          keys[u] = 0;  // kept; no voxel
-          continue;
-        }
-        const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
-        // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
-        if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
-        keys[u] = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+  auto keyRow = [&](int v) {
+    const PointT* row = &in.points[static_cast<size_t>(v) * width];
+    uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
+    for (int u = 0; u < width; ++u) {
+      const PointT& p = row[u];
+      keys[u] = voxel_key::kEmpty;
+      // Depth cameras mark missing depth in z. The costly flying pixel test last.
+      if (!finitePoint(p.x, p.y, p.z)) continue;
+      if (view) view->add(u, p.x, p.y, p.z);
+      if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) continue;
+      if (drop_flying && flying(row, u, v)) continue;
+      if (!grid) {
+        keys[u] = 0;  // kept; no voxel
+        continue;
       }
+      const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
+      // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
+      if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
+      keys[u] = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
     }
   };
-  // Each pixel's key depends on the input alone: bands of rows on all cores. More bands than
-  // cores, so that a core slowed by other work takes fewer.
-  const unsigned threads = workerThreads();
-  const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
-  parallelFor(
-      static_cast<size_t>(bands),
-      [&](size_t band) {
-        keyRows(static_cast<int>(band * height / bands),
-                static_cast<int>((band + 1) * height / bands));
-      },
-      threads);
-}
 
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out) {
-  if (&in == &out) {  // in-place call: build the result separately, then swap
-    Cloud result;
-    applyImpl(in, result);
-    out.swap(result);
-    return;
-  }
-  applyImpl(in, out);
-}
-
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out) {
-  applyImpl(in, out);
-}
-
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out) {
-  applyImpl(in, out);
-}
-
-size_t Preprocessor::bufferBytes() const {
-  return slots_.capacity() * sizeof(VoxelSlot) + sums_.capacity() * sizeof(VoxelSum) +
-         keys_.capacity() * sizeof(uint64_t) + row_voxels_.capacity() * sizeof(uint32_t);
-}
-
-void Preprocessor::releaseOversizedBuffers(size_t input_points) {
-  // 8x: a normal frame's own table is 2-4x its voxels; below 1 MB nothing is worth giving back.
-  constexpr size_t kSlack = 8, kKeepBytes = 1 << 20;
-  const size_t voxels = std::max<size_t>(sums_.size(), 1024);
-  if (slots_.capacity() * sizeof(VoxelSlot) > kKeepBytes && slots_.capacity() > kSlack * voxels) {
-    std::vector<VoxelSlot>().swap(slots_);  // the next frame starts small and grows
-  }
-  if (sums_.capacity() * sizeof(VoxelSum) > kKeepBytes && sums_.capacity() > kSlack * voxels) {
-    sums_.shrink_to_fit();
-  }
-  // One key per input point: kept while frames of about this size come.
-  constexpr size_t kKeySlack = 2;
-  if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
-      keys_.capacity() > kKeySlack * input_points) {
-    std::vector<uint64_t>().swap(keys_);
-  }
-  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
-      row_voxels_.capacity() > kKeySlack * input_points) {
-    std::vector<uint32_t>().swap(row_voxels_);
+  // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
+  // (row_voxels keeps the previous row's voxels) is taken without a hash lookup.
+  VoxelTable& table = band.table;
+  if (grid) table.clear();
+  const bool rows = height > 1;
+  band.row_voxels.resize(grid && rows ? 2 * static_cast<size_t>(width) : 0);
+  uint32_t* above = band.row_voxels.data();
+  uint32_t* current = rows ? above + width : nullptr;
+  uint64_t last_key = voxel_key::kEmpty;
+  uint32_t last_voxel = 0;
+  for (int v = band.first_row; v < band.end_row; ++v) {
+    keyRow(v);
+    if (view) view_.endRow(*view, static_cast<size_t>(v));
+    if (!grid) continue;
+    const size_t row = static_cast<size_t>(v) * width;
+    const bool above_in_band = v > band.first_row;
+    for (int u = 0; u < width; ++u) {
+      const uint64_t key = keys_[row + u];
+      if (key == voxel_key::kEmpty) continue;
+      if (key != last_key) {
+        last_voxel = above_in_band && keys_[row - width + u] == key ? above[u] : table.voxelOf(key);
+        last_key = key;
+      }
+      if (rows) current[u] = last_voxel;
+      const PointT& p = in.points[row + u];
+      VoxelSum& sum = table.sums[last_voxel];
+      sum.x += p.x, sum.y += p.y, sum.z += p.z;
+      ++sum.count;
+      sum.last_row = static_cast<uint32_t>(v);
+    }
+    std::swap(above, current);
   }
 }
 
 template <typename PointT>
-void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
+void Preprocessor::mergeBand(const pcl::PointCloud<PointT>& in, int width, Band& band) {
+  VoxelTable& all = bands_.front().table;
+  const std::vector<VoxelSum>& sums = band.table.sums;
+  band.merged.resize(sums.size());
+  band.met_before.assign(sums.size(), 0);
+  int revisit_end = band.first_row;  // the rows that hold a voxel met before
+  for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
+    const size_t known = all.sums.size();
+    const uint32_t merged = all.voxelOf(sums[voxel].key);
+    band.merged[voxel] = merged;
+    if (merged == known) {  // new: the band's sum is the sum of its points in image order
+      all.sums[merged] = sums[voxel];
+      continue;
+    }
+    band.met_before[voxel] = 1;
+    revisit_end = std::max(revisit_end, static_cast<int>(sums[voxel].last_row) + 1);
+  }
+  // A voxel met before (it straddles the band's first row, mostly) adds the band's points to
+  // what the earlier bands summed, one by one, in image order: the sums one pass makes.
+  uint64_t last_key = voxel_key::kEmpty;
+  uint32_t last_voxel = 0;
+  for (size_t i = static_cast<size_t>(band.first_row) * width,
+              end = static_cast<size_t>(revisit_end) * width;
+       i < end; ++i) {
+    const uint64_t key = keys_[i];
+    if (key == voxel_key::kEmpty) continue;
+    if (key != last_key) last_voxel = band.table.find(key), last_key = key;
+    if (!band.met_before[last_voxel]) continue;
+    const PointT& p = in.points[i];
+    VoxelSum& sum = all.sums[band.merged[last_voxel]];
+    sum.x += p.x, sum.y += p.y, sum.z += p.z;
+    ++sum.count;
+  }
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out, ViewBounds* view) {
+  if (&in == &out) {  // in-place call: build the result separately, then swap
+    Cloud result;
+    applyImpl(in, result, view);
+    out.swap(result);
+    return;
+  }
+  applyImpl(in, out, view);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out,
+                         ViewBounds* view) {
+  applyImpl(in, out, view);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out,
+                         ViewBounds* view) {
+  applyImpl(in, out, view);
+}
+
+size_t Preprocessor::bufferBytes() const {
+  size_t bytes = keys_.capacity() * sizeof(uint64_t);
+  for (const Band& band : bands_) {
+    bytes += band.table.bytes() + band.row_voxels.capacity() * sizeof(uint32_t) +
+             band.merged.capacity() * sizeof(uint32_t) + band.met_before.capacity();
+  }
+  return bytes;
+}
+
+void Preprocessor::releaseOversizedBuffers(size_t input_points) {
+  for (Band& band : bands_) band.table.release();
+  // One key per input point: kept while frames of about this size come.
+  constexpr size_t kKeySlack = 2, kKeepBytes = 1 << 20;
+  if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
+      keys_.capacity() > kKeySlack * input_points) {
+    std::vector<uint64_t>().swap(keys_);
+  }
+  for (Band& band : bands_) {
+    if (band.row_voxels.capacity() * sizeof(uint32_t) > kKeepBytes &&
+        band.row_voxels.capacity() > kKeySlack * input_points) {
+      std::vector<uint32_t>().swap(band.row_voxels);
+    }
+  }
+}
+
+template <typename PointT>
+void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view) {
   out.header = in.header;
   out.points.clear();
   out.width = 0;
@@ -172,7 +289,30 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
   const bool organised = in.height > 1 && static_cast<size_t>(in.width) * in.height == in.size();
   const int width = organised ? static_cast<int>(in.width) : static_cast<int>(in.size());
   const int height = organised ? static_cast<int>(in.height) : 1;
-  keyPixels(in, width, height, organised && params_.flying_pixel_angle_deg > 0.0f);
+  const bool drop_flying = organised && params_.flying_pixel_angle_deg > 0.0f;
+  const bool gather_view = view && organised && width > 1;
+  keys_.resize(in.points.size());
+
+  // Each pixel's key depends on the input alone: bands of rows on all cores. More bands than
+  // cores, so that a core slowed by other work takes fewer.
+  const unsigned threads = workerThreads();
+  const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
+  bands_.resize(static_cast<size_t>(bands));
+  if (gather_view) view_.reset(static_cast<size_t>(bands), static_cast<size_t>(height));
+  if (width > 0) {
+    parallelFor(
+        static_cast<size_t>(bands),
+        [&](size_t b) {
+          Band& band = bands_[b];
+          band.first_row = static_cast<int>(b * height / bands);
+          band.end_row = static_cast<int>((b + 1) * height / bands);
+          ViewBoundsGatherer::Band band_view;
+          passBand(in, width, drop_flying, band, gather_view ? &band_view : nullptr);
+          if (gather_view) view_.setBand(b, band_view);
+        },
+        threads);
+  }
+  if (view) *view = gather_view ? view_.bounds() : ViewBounds();
 
   if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
     out.points.reserve(in.points.size());
@@ -185,65 +325,10 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
     return;
   }
 
-  // Keep the table at most half full: start from the last frame's size, grow when needed.
-  size_t capacity = std::max<size_t>(slots_.size(), 1024);
-  slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
-  sums_.clear();
-  auto grow = [&]() {
-    capacity *= 2;
-    slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
-    for (uint32_t voxel = 0; voxel < sums_.size(); ++voxel) {
-      const uint64_t key = sums_[voxel].key;
-      size_t slot = voxel_key::hash(key) & (capacity - 1);
-      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-      slots_[slot] = {key, voxel};
-    }
-  };
-  auto voxelOf = [&](uint64_t key) {
-    size_t slot = voxel_key::hash(key) & (capacity - 1);
-    while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
-      slot = (slot + 1) & (capacity - 1);
-    }
-    if (slots_[slot].key == voxel_key::kEmpty) {
-      if (2 * (sums_.size() + 1) > capacity) {
-        grow();
-        slot = voxel_key::hash(key) & (capacity - 1);
-        while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-      }
-      slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
-      sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
-    }
-    return slots_[slot].voxel;
-  };
-
-  // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
-  // (row_voxels_ keeps the previous row's voxels) is taken without a hash lookup.
-  const bool rows = height > 1;
-  row_voxels_.resize(rows ? 2 * static_cast<size_t>(width) : 0);
-  uint32_t* above = row_voxels_.data();
-  uint32_t* current = rows ? above + width : nullptr;
-  uint64_t last_key = voxel_key::kEmpty;
-  uint32_t last_voxel = 0;
-  for (int v = 0; v < height; ++v) {
-    const size_t row = static_cast<size_t>(v) * width;
-    for (int u = 0; u < width; ++u) {
-      const uint64_t key = keys_[row + u];
-      if (key == voxel_key::kEmpty) continue;
-      if (key != last_key) {
-        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : voxelOf(key);
-        last_key = key;
-      }
-      if (rows) current[u] = last_voxel;
-      const PointT& p = in.points[row + u];
-      VoxelSum& sum = sums_[last_voxel];
-      sum.x += p.x, sum.y += p.y, sum.z += p.z;
-      ++sum.count;
-    }
-    std::swap(above, current);
-  }
-
-  out.points.reserve(sums_.size());
-  for (const VoxelSum& sum : sums_) {
+  for (size_t b = 1; b < bands_.size(); ++b) mergeBand(in, width, bands_[b]);
+  const std::vector<VoxelSum>& sums = bands_.front().table.sums;
+  out.points.reserve(sums.size());
+  for (const VoxelSum& sum : sums) {
     const double inv_count = 1.0 / sum.count;
     out.points.emplace_back(static_cast<float>(sum.x * inv_count),
                             static_cast<float>(sum.y * inv_count),
