@@ -23,7 +23,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 namespace tabletop_shapes {
 using voxel_key::floorToInt;
@@ -138,26 +143,136 @@ void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool d
     return any_neighbour;
   };
   const float limit = voxel_key::kLimit;
+  // The key of a pixel that passed the flying pixel test, kEmpty beyond the key's reach.
+  auto keyOf = [&](const PointT& p) {
+    if (!grid) return uint64_t{0};  // kept; no voxel
+    const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
+    // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
+    if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) {
+      return voxel_key::kEmpty;
+    }
+    return voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+  };
+  auto keyPixel = [&](const PointT* row, int u, int v) {
+    const PointT& p = row[u];
+    // Depth cameras mark missing depth in z. The costly flying pixel test last.
+    if (!finitePoint(p.x, p.y, p.z)) return voxel_key::kEmpty;
+    if (view) view->add(u, p.x, p.y, p.z);
+    if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) return voxel_key::kEmpty;
+    if (drop_flying && flying(row, u, v)) return voxel_key::kEmpty;
+    return keyOf(p);
+  };
+#ifdef __SSE2__
+  // Four pixels at a time, with the float operations of the scalar tests in the same order (the
+  // same decisions): finiteness, range, the left neighbour's flying pixel test (it clears most
+  // points; the others take the scalar test of all neighbours), the view's extremes and the
+  // voxel coordinates.
+  const __m128 zero = _mm_setzero_ps(), eye_xs = _mm_set1_ps(eye_x), eye_ys = _mm_set1_ps(eye_y),
+               eye_zs = _mm_set1_ps(eye_z), along_weights = _mm_set1_ps(along_weight),
+               cot_sqs = _mm_set1_ps(cot_sq), max_range_sqs = _mm_set1_ps(max_range_sq),
+               inv_leafs = _mm_set1_ps(inv_leaf), limits = _mm_set1_ps(limit),
+               sign = _mm_set1_ps(-0.0f), huge = _mm_set1_ps(std::numeric_limits<float>::max());
+  __m128 min_tan_x = huge, max_tan_x = _mm_sub_ps(zero, huge), min_tan_y = huge,
+         max_tan_y = max_tan_x, min_z = huge;
+#endif
   auto keyRow = [&](int v) {
     const PointT* row = &in.points[static_cast<size_t>(v) * width];
     uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
-    for (int u = 0; u < width; ++u) {
-      const PointT& p = row[u];
-      keys[u] = voxel_key::kEmpty;
-      // Depth cameras mark missing depth in z. The costly flying pixel test last.
-      if (!finitePoint(p.x, p.y, p.z)) continue;
-      if (view) view->add(u, p.x, p.y, p.z);
-      if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) continue;
-      if (drop_flying && flying(row, u, v)) continue;
+    int u = 0;
+#ifdef __SSE2__
+    if (view) {  // the row's first and last valid pixels; the ones between give extremes only
+      int first = 0, last = width - 1;
+      auto valid = [&](int c) {
+        return finitePoint(row[c].x, row[c].y, row[c].z) && row[c].z > 0.0f;
+      };
+      while (first < width && !valid(first)) ++first;
+      while (last > first && !valid(last)) --last;
+      if (first < width) view->add(first, row[first].x, row[first].y, row[first].z);
+      if (last > first) view->add(last, row[last].x, row[last].y, row[last].z);
+    }
+    __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
+    for (; u + 4 <= width; u += 4) {
+      __m128 x = _mm_loadu_ps(&row[u].x), y = _mm_loadu_ps(&row[u + 1].x),
+             z = _mm_loadu_ps(&row[u + 2].x), w = _mm_loadu_ps(&row[u + 3].x);
+      _MM_TRANSPOSE4_PS(x, y, z, w);
+      const __m128 finite = _mm_cmpeq_ps(
+          _mm_add_ps(_mm_add_ps(_mm_sub_ps(x, x), _mm_sub_ps(y, y)), _mm_sub_ps(z, z)), zero);
+      if (view) {
+        const __m128 valid = _mm_and_ps(finite, _mm_cmpgt_ps(z, zero));
+        const __m128 tan_x = _mm_div_ps(x, z), tan_y = _mm_div_ps(y, z);
+        auto pick = [&](__m128 value, __m128 otherwise) {
+          return _mm_or_ps(_mm_and_ps(valid, value), _mm_andnot_ps(valid, otherwise));
+        };
+        min_tan_x = _mm_min_ps(min_tan_x, pick(tan_x, huge));
+        max_tan_x = _mm_max_ps(max_tan_x, pick(tan_x, _mm_sub_ps(zero, huge)));
+        min_tan_y = _mm_min_ps(min_tan_y, pick(tan_y, huge));
+        max_tan_y = _mm_max_ps(max_tan_y, pick(tan_y, _mm_sub_ps(zero, huge)));
+        min_z = _mm_min_ps(min_z, pick(z, huge));
+      }
+      __m128 kept = finite;
+      if (limit_range) {
+        const __m128 range_sq =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, x), _mm_mul_ps(y, y)), _mm_mul_ps(z, z));
+        kept = _mm_and_ps(kept, _mm_cmple_ps(range_sq, max_range_sqs));
+      }
+      // The left neighbours: the previous pixel of each lane.
+      const __m128 shifted_x = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(x), 4)),
+                   shifted_y = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(y), 4)),
+                   shifted_z = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(z), 4));
+      const __m128 qx = _mm_move_ss(shifted_x, _mm_shuffle_ps(left_x, left_x, 0xff)),
+                   qy = _mm_move_ss(shifted_y, _mm_shuffle_ps(left_y, left_y, 0xff)),
+                   qz = _mm_move_ss(shifted_z, _mm_shuffle_ps(left_z, left_z, 0xff));
+      left_x = x, left_y = y, left_z = z;
+      int kept_lanes = _mm_movemask_ps(kept);
+      if (drop_flying && kept_lanes) {
+        const __m128 sx = _mm_sub_ps(x, eye_xs), sy = _mm_sub_ps(y, eye_ys),
+                     sz = _mm_sub_ps(z, eye_zs);
+        const __m128 sight_sq =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(sx, sx), _mm_mul_ps(sy, sy)), _mm_mul_ps(sz, sz));
+        const __m128 dx = _mm_sub_ps(qx, x), dy = _mm_sub_ps(qy, y), dz = _mm_sub_ps(qz, z);
+        const __m128 dot =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, sx), _mm_mul_ps(dy, sy)), _mm_mul_ps(dz, sz));
+        const __m128 along = _mm_mul_ps(_mm_mul_ps(dot, dot), along_weights);
+        const __m128 across = _mm_mul_ps(
+            _mm_mul_ps(cot_sqs, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                                           _mm_mul_ps(dz, dz))),
+            sight_sq);
+        const __m128 left_finite = _mm_cmpeq_ps(_mm_sub_ps(qz, qz), zero);
+        int cleared = _mm_movemask_ps(_mm_and_ps(left_finite, _mm_cmple_ps(along, across)));
+        if (u == 0) cleared &= ~1;  // the row's first pixel has no left neighbour
+        for (int lanes = kept_lanes & ~cleared; lanes; lanes &= lanes - 1) {
+          const int lane = __builtin_ctz(static_cast<unsigned>(lanes));
+          if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
+        }
+      }
       if (!grid) {
-        keys[u] = 0;  // kept; no voxel
+        for (int lane = 0; lane < 4; ++lane) {
+          keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
+        }
         continue;
       }
-      const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
-      // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
-      if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
-      keys[u] = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+      const __m128 vx = _mm_mul_ps(x, inv_leafs), vy = _mm_mul_ps(y, inv_leafs),
+                   vz = _mm_mul_ps(z, inv_leafs);
+      const __m128 reach = _mm_max_ps(_mm_max_ps(_mm_andnot_ps(sign, vx), _mm_andnot_ps(sign, vy)),
+                                      _mm_andnot_ps(sign, vz));
+      kept_lanes &= _mm_movemask_ps(_mm_cmple_ps(reach, limits));
+      auto floorOf = [](__m128 value) {  // as floorToInt, for |value| < 2^31
+        const __m128i truncated = _mm_cvttps_epi32(value);
+        return _mm_add_epi32(truncated,
+                             _mm_castps_si128(_mm_cmplt_ps(value, _mm_cvtepi32_ps(truncated))));
+      };
+      alignas(16) int32_t cx[4], cy[4], cz[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(cx), floorOf(vx));
+      _mm_store_si128(reinterpret_cast<__m128i*>(cy), floorOf(vy));
+      _mm_store_si128(reinterpret_cast<__m128i*>(cz), floorOf(vz));
+      for (int lane = 0; lane < 4; ++lane) {
+        keys[u + lane] = kept_lanes >> lane & 1 ? voxel_key::pack(cx[lane], cy[lane], cz[lane])
+                                                : voxel_key::kEmpty;
+      }
     }
+#endif
+    // The rest one by one (with the view: a column added again or later keeps first and last).
+    for (; u < width; ++u) keys[u] = keyPixel(row, u, v);
   };
 
   // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
@@ -192,6 +307,17 @@ void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool d
     }
     std::swap(above, current);
   }
+#ifdef __SSE2__
+  if (view) {
+    auto lanes = [](__m128 value, float* out) { _mm_storeu_ps(out, value); };
+    alignas(16) float lx[4], hx[4], ly[4], hy[4], lz[4];
+    lanes(min_tan_x, lx), lanes(max_tan_x, hx), lanes(min_tan_y, ly), lanes(max_tan_y, hy);
+    lanes(min_z, lz);
+    for (int lane = 0; lane < 4; ++lane) {
+      view->addExtremes(lx[lane], hx[lane], ly[lane], hy[lane], lz[lane]);
+    }
+  }
+#endif
 }
 
 template <typename PointT>

@@ -208,6 +208,19 @@ TEST(Preprocess, ViewBoundsFromTheSamePassAreViewBoundsOfs) {
     EXPECT_EQ(view.min_depth, reference.min_depth);
   }
   setWorkerThreads(0);
+  // 637 columns: pixels four at a time, then the last one alone.
+  pcl::PointCloud<pcl::PointXYZ> narrow(637, 480);
+  for (int v = 0; v < 480; ++v) {
+    for (int u = 0; u < 637; ++u) narrow.at(u, v) = in.at(u + 3, v);
+  }
+  ViewBounds narrow_view;
+  Cloud narrow_out;
+  Preprocessor().apply(narrow, narrow_out, &narrow_view);
+  const ViewBounds narrow_reference = viewBoundsOf(narrow);
+  EXPECT_EQ(narrow_view.min_tan_x, narrow_reference.min_tan_x);
+  EXPECT_EQ(narrow_view.max_tan_x, narrow_reference.max_tan_x);
+  EXPECT_EQ(narrow_view.pixel_tan, narrow_reference.pixel_tan);
+  EXPECT_NEAR(narrow_view.max_tan_x, 319.0f / 525.0f, 1e-6f);
   // An unorganised cloud has no image: unknown, as viewBoundsOf says.
   pcl::PointCloud<pcl::PointXYZ> unorganised = in;
   unorganised.width = static_cast<uint32_t>(in.size());

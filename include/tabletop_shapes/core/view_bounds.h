@@ -29,6 +29,16 @@ class ViewBoundsGatherer {
       last_ = column, last_tan_ = tan_x;
     }
 
+    // Extremes of valid pixels gathered elsewhere (columns: through add).
+    void addExtremes(float min_tan_x, float max_tan_x, float min_tan_y, float max_tan_y,
+                     float min_z) {
+      min_x_ = std::min(min_x_, min_tan_x);
+      max_x_ = std::max(max_x_, max_tan_x);
+      min_y_ = std::min(min_y_, min_tan_y);
+      max_y_ = std::max(max_y_, max_tan_y);
+      min_z_ = std::min(min_z_, min_z);
+    }
+
    private:
     friend class ViewBoundsGatherer;
     float min_x_ = std::numeric_limits<float>::max(), max_x_ = -min_x_;
