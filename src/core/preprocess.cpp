@@ -452,14 +452,22 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   }
 
   for (size_t b = 1; b < bands_.size(); ++b) mergeBand(in, width, bands_[b]);
+  // The centroids, in parts on all cores.
   const std::vector<VoxelSum>& sums = bands_.front().table.sums;
-  out.points.reserve(sums.size());
-  for (const VoxelSum& sum : sums) {
-    const double inv_count = 1.0 / sum.count;
-    out.points.emplace_back(static_cast<float>(sum.x * inv_count),
-                            static_cast<float>(sum.y * inv_count),
-                            static_cast<float>(sum.z * inv_count));
-  }
+  out.points.resize(sums.size());
+  const size_t parts = std::min<size_t>(bands_.size(), sums.size());
+  parallelFor(
+      parts,
+      [&](size_t part) {
+        for (size_t i = part * sums.size() / parts, end = (part + 1) * sums.size() / parts; i < end;
+             ++i) {
+          const double inv_count = 1.0 / sums[i].count;
+          out.points[i] = pcl::PointXYZ(static_cast<float>(sums[i].x * inv_count),
+                                        static_cast<float>(sums[i].y * inv_count),
+                                        static_cast<float>(sums[i].z * inv_count));
+        }
+      },
+      threads);
   out.width = static_cast<uint32_t>(out.points.size());
   releaseOversizedBuffers(in.points.size());
 }
