@@ -7,15 +7,14 @@
 // same surface. Dropping them keeps objects one behind the other from being bridged into one
 // cluster.
 //
-// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): one pass over bands of image
-// rows on all cores decides each pixel (flying, out of range), packs a kept point's integer
-// voxel coordinates into a 63-bit key and adds the point to its voxel's running sum in the
-// band's own open-addressing hash table (neighbouring pixels of an organised cloud mostly share
-// a voxel, so the left and the upper pixel's voxels are tried first); the view bounds are
-// gathered on the way. The bands' tables are then merged into the first band's in image order.
-// The output lists the voxels in the order one pass over the image first meets them, and each
-// voxel's sum adds its points in image order, so the cloud is the same point for point whatever
-// the number of threads. The tables are members and are reused from frame to frame.
+// Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
+// on all cores decides each pixel (flying, out of range), four pixels at a time, packs a kept
+// point's integer voxel coordinates into a 63-bit key and gathers the view bounds on the way; a
+// single pass in image order then adds each point to its voxel's running sum, found through an
+// open-addressing hash table. Neighbouring pixels of an organised cloud mostly share a voxel, so
+// the left and the upper pixel's voxels are tried first. The table and the sums are members and
+// are reused from frame to frame; the output lists the voxels in the order they are first met,
+// so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/parallel.h"
@@ -71,15 +70,8 @@ uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key) {
       while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & mask;
     }
     slots_[slot] = {key, static_cast<uint32_t>(sums.size())};
-    sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0, 0});
+    sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
   }
-  return slots_[slot].voxel;
-}
-
-uint32_t Preprocessor::VoxelTable::find(uint64_t key) const {
-  const size_t mask = slots_.size() - 1;
-  size_t slot = voxel_key::hash(key) & mask;
-  while (slots_[slot].key != key) slot = (slot + 1) & mask;
   return slots_[slot].voxel;
 }
 
@@ -100,8 +92,8 @@ void Preprocessor::VoxelTable::release() {
 }
 
 template <typename PointT>
-void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool drop_flying,
-                            Band& band, ViewBoundsGatherer::Band* view) {
+void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool drop_flying,
+                           int first_row, int end_row, ViewBoundsGatherer::Band* view) {
   const int height = static_cast<int>(keys_.size() / width);
   const bool limit_range = params_.max_range > 0.0f;
   const float max_range_sq = params_.max_range * params_.max_range;
@@ -275,37 +267,9 @@ void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool d
     for (; u < width; ++u) keys[u] = keyPixel(row, u, v);
   };
 
-  // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
-  // (row_voxels keeps the previous row's voxels) is taken without a hash lookup.
-  VoxelTable& table = band.table;
-  if (grid) table.clear();
-  const bool rows = height > 1;
-  band.row_voxels.resize(grid && rows ? 2 * static_cast<size_t>(width) : 0);
-  uint32_t* above = band.row_voxels.data();
-  uint32_t* current = rows ? above + width : nullptr;
-  uint64_t last_key = voxel_key::kEmpty;
-  uint32_t last_voxel = 0;
-  for (int v = band.first_row; v < band.end_row; ++v) {
+  for (int v = first_row; v < end_row; ++v) {
     keyRow(v);
     if (view) view_.endRow(*view, static_cast<size_t>(v));
-    if (!grid) continue;
-    const size_t row = static_cast<size_t>(v) * width;
-    const bool above_in_band = v > band.first_row;
-    for (int u = 0; u < width; ++u) {
-      const uint64_t key = keys_[row + u];
-      if (key == voxel_key::kEmpty) continue;
-      if (key != last_key) {
-        last_voxel = above_in_band && keys_[row - width + u] == key ? above[u] : table.voxelOf(key);
-        last_key = key;
-      }
-      if (rows) current[u] = last_voxel;
-      const PointT& p = in.points[row + u];
-      VoxelSum& sum = table.sums[last_voxel];
-      sum.x += p.x, sum.y += p.y, sum.z += p.z;
-      ++sum.count;
-      sum.last_row = static_cast<uint32_t>(v);
-    }
-    std::swap(above, current);
   }
 #ifdef __SSE2__
   if (view) {
@@ -321,38 +285,32 @@ void Preprocessor::passBand(const pcl::PointCloud<PointT>& in, int width, bool d
 }
 
 template <typename PointT>
-void Preprocessor::mergeBand(const pcl::PointCloud<PointT>& in, int width, Band& band) {
-  VoxelTable& all = bands_.front().table;
-  const std::vector<VoxelSum>& sums = band.table.sums;
-  band.merged.resize(sums.size());
-  band.met_before.assign(sums.size(), 0);
-  int revisit_end = band.first_row;  // the rows that hold a voxel met before
-  for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
-    const size_t known = all.sums.size();
-    const uint32_t merged = all.voxelOf(sums[voxel].key);
-    band.merged[voxel] = merged;
-    if (merged == known) {  // new: the band's sum is the sum of its points in image order
-      all.sums[merged] = sums[voxel];
-      continue;
-    }
-    band.met_before[voxel] = 1;
-    revisit_end = std::max(revisit_end, static_cast<int>(sums[voxel].last_row) + 1);
-  }
-  // A voxel met before (it straddles the band's first row, mostly) adds the band's points to
-  // what the earlier bands summed, one by one, in image order: the sums one pass makes.
+void Preprocessor::sumVoxels(const pcl::PointCloud<PointT>& in, int width, int height) {
+  // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
+  // (row_voxels_ keeps the previous row's voxels) is taken without a hash lookup.
+  table_.clear();
+  const bool rows = height > 1;
+  row_voxels_.resize(rows ? 2 * static_cast<size_t>(width) : 0);
+  uint32_t* above = row_voxels_.data();
+  uint32_t* current = rows ? above + width : nullptr;
   uint64_t last_key = voxel_key::kEmpty;
   uint32_t last_voxel = 0;
-  for (size_t i = static_cast<size_t>(band.first_row) * width,
-              end = static_cast<size_t>(revisit_end) * width;
-       i < end; ++i) {
-    const uint64_t key = keys_[i];
-    if (key == voxel_key::kEmpty) continue;
-    if (key != last_key) last_voxel = band.table.find(key), last_key = key;
-    if (!band.met_before[last_voxel]) continue;
-    const PointT& p = in.points[i];
-    VoxelSum& sum = all.sums[band.merged[last_voxel]];
-    sum.x += p.x, sum.y += p.y, sum.z += p.z;
-    ++sum.count;
+  for (int v = 0; v < height; ++v) {
+    const size_t row = static_cast<size_t>(v) * width;
+    for (int u = 0; u < width; ++u) {
+      const uint64_t key = keys_[row + u];
+      if (key == voxel_key::kEmpty) continue;
+      if (key != last_key) {
+        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : table_.voxelOf(key);
+        last_key = key;
+      }
+      if (rows) current[u] = last_voxel;
+      const PointT& p = in.points[row + u];
+      VoxelSum& sum = table_.sums[last_voxel];
+      sum.x += p.x, sum.y += p.y, sum.z += p.z;
+      ++sum.count;
+    }
+    std::swap(above, current);
   }
 }
 
@@ -377,27 +335,21 @@ void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& ou
 }
 
 size_t Preprocessor::bufferBytes() const {
-  size_t bytes = keys_.capacity() * sizeof(uint64_t);
-  for (const Band& band : bands_) {
-    bytes += band.table.bytes() + band.row_voxels.capacity() * sizeof(uint32_t) +
-             band.merged.capacity() * sizeof(uint32_t) + band.met_before.capacity();
-  }
-  return bytes;
+  return table_.bytes() + keys_.capacity() * sizeof(uint64_t) +
+         row_voxels_.capacity() * sizeof(uint32_t);
 }
 
 void Preprocessor::releaseOversizedBuffers(size_t input_points) {
-  for (Band& band : bands_) band.table.release();
+  table_.release();
   // One key per input point: kept while frames of about this size come.
   constexpr size_t kKeySlack = 2, kKeepBytes = 1 << 20;
   if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
       keys_.capacity() > kKeySlack * input_points) {
     std::vector<uint64_t>().swap(keys_);
   }
-  for (Band& band : bands_) {
-    if (band.row_voxels.capacity() * sizeof(uint32_t) > kKeepBytes &&
-        band.row_voxels.capacity() > kKeySlack * input_points) {
-      std::vector<uint32_t>().swap(band.row_voxels);
-    }
+  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
+      row_voxels_.capacity() > kKeySlack * input_points) {
+    std::vector<uint32_t>().swap(row_voxels_);
   }
 }
 
@@ -423,17 +375,14 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   // cores, so that a core slowed by other work takes fewer.
   const unsigned threads = workerThreads();
   const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
-  bands_.resize(static_cast<size_t>(bands));
   if (gather_view) view_.reset(static_cast<size_t>(bands), static_cast<size_t>(height));
   if (width > 0) {
     parallelFor(
         static_cast<size_t>(bands),
         [&](size_t b) {
-          Band& band = bands_[b];
-          band.first_row = static_cast<int>(b * height / bands);
-          band.end_row = static_cast<int>((b + 1) * height / bands);
           ViewBoundsGatherer::Band band_view;
-          passBand(in, width, drop_flying, band, gather_view ? &band_view : nullptr);
+          keyRows(in, width, drop_flying, static_cast<int>(b * height / bands),
+                  static_cast<int>((b + 1) * height / bands), gather_view ? &band_view : nullptr);
           if (gather_view) view_.setBand(b, band_view);
         },
         threads);
@@ -451,11 +400,15 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
     return;
   }
 
-  for (size_t b = 1; b < bands_.size(); ++b) mergeBand(in, width, bands_[b]);
+  // One pass in image order: each voxel's double sum adds its points in that order, and the
+  // voxels come out in the order they are first met, whatever the number of threads. (Summing
+  // per band on all cores and merging the bands' tables in image order was slower: most voxels
+  // hold one or two points, and the merge's inserts into the frame's table miss the cache.)
+  sumVoxels(in, width, height);
   // The centroids, in parts on all cores.
-  const std::vector<VoxelSum>& sums = bands_.front().table.sums;
+  const std::vector<VoxelSum>& sums = table_.sums;
   out.points.resize(sums.size());
-  const size_t parts = std::min<size_t>(bands_.size(), sums.size());
+  const size_t parts = std::min<size_t>(static_cast<size_t>(bands), sums.size());
   parallelFor(
       parts,
       [&](size_t part) {

@@ -30,14 +30,12 @@ class Preprocessor {
     uint64_t key;
     double x, y, z;
     uint32_t count;
-    uint32_t last_row;  // the last image row that added to it
   };
   // Open-addressing hash from voxel key to the voxel's running sum; reused between frames.
   class VoxelTable {
    public:
     void clear();  // keeps the last frame's size, so that a frame like it does not grow
-    uint32_t voxelOf(uint64_t key);     // inserts a voxel with an empty sum when new
-    uint32_t find(uint64_t key) const;  // of a key in the table
+    uint32_t voxelOf(uint64_t key);  // inserts a voxel with an empty sum when new
     size_t bytes() const;
     void release();              // gives back a table far larger than its voxels need
     std::vector<VoxelSum> sums;  // in order of first appearance: deterministic output
@@ -50,33 +48,23 @@ class Preprocessor {
     void grow();
     std::vector<Slot> slots_;
   };
-  // A band of image rows, keyed and summed by one thread into its own table.
-  struct Band {
-    int first_row = 0, end_row = 0;
-    VoxelTable table;                  // band 0's becomes the whole frame's
-    std::vector<uint32_t> row_voxels;  // the voxels of the last two rows' points
-    std::vector<uint32_t> merged;      // per voxel of the band: its voxel in band 0's table
-    std::vector<char> met_before;      // per voxel of the band: also in an earlier band
-  };
-
   template <typename PointT>
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view);
-  // keys_[i] for the rows of band `band`: input point i's voxel key (0 without a voxel grid),
+  // keys_[i] for rows [first_row, end_row): input point i's voxel key (0 without a voxel grid),
   // kEmpty when it is dropped (not finite, flying pixel, beyond the range); the image is
-  // width x height points. With a voxel grid, each row's points are then added to the band's
-  // table; with `view`, the valid pixels to the band's view bounds.
+  // width x (keys_.size() / width) points. With `view`, the valid pixels go to its bounds.
   template <typename PointT>
-  void passBand(const pcl::PointCloud<PointT>& in, int width, bool drop_flying, Band& band,
-                ViewBoundsGatherer::Band* view);
-  // Band `b`'s voxels into band 0's table, in the band's order; a voxel also met in an earlier
-  // band gets the band's points added one by one, in image order, as one pass would add them.
+  void keyRows(const pcl::PointCloud<PointT>& in, int width, bool drop_flying, int first_row,
+               int end_row, ViewBoundsGatherer::Band* view);
+  // Every kept point of the width x height image added to its voxel's sum, in image order.
   template <typename PointT>
-  void mergeBand(const pcl::PointCloud<PointT>& in, int width, Band& band);
+  void sumVoxels(const pcl::PointCloud<PointT>& in, int width, int height);
   void releaseOversizedBuffers(size_t input_points);
 
   PreprocessParams params_;
-  std::vector<Band> bands_;
-  std::vector<uint64_t> keys_;  // per input point; reused between frames
+  VoxelTable table_;
+  std::vector<uint64_t> keys_;        // per input point; reused between frames
+  std::vector<uint32_t> row_voxels_;  // the voxels of the last two image rows' points
   ViewBoundsGatherer view_;
 };
 
