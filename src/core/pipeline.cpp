@@ -40,9 +40,8 @@ SceneResult Pipeline::processImpl(const pcl::PointCloud<PointT>& cloud) {
   const auto start = Clock::now();
 
   auto stage = Clock::now();
-  result.view = viewBoundsOf(cloud);
+  preprocessor_.apply(cloud, *filtered_, &result.view);  // the view bounds from the same pass
   result.view.point_spacing = params_.preprocess.leaf_size;
-  preprocessor_.apply(cloud, *filtered_);
   result.times.preprocess_ms = msSince(stage);
 
   stage = Clock::now();

@@ -8,12 +8,13 @@
 // cluster.
 //
 // Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
-// on all cores decides each pixel (flying, out of range) and packs a kept point's integer voxel
-// coordinates into a 63-bit key; a single pass in image order then adds each point to its
-// voxel's running sum, found through an open-addressing hash table. Neighbouring pixels of an
-// organised cloud mostly share a voxel, so the left and the upper pixel's voxels are tried first.
-// The table and the sums are members and are reused from frame to frame; the output lists the
-// voxels in the order they are first met, so it is deterministic.
+// on all cores decides each pixel (flying, out of range), four pixels at a time, packs a kept
+// point's integer voxel coordinates into a 63-bit key and gathers the view bounds on the way; a
+// single pass in image order then adds each point to its voxel's running sum, found through an
+// open-addressing hash table. Neighbouring pixels of an organised cloud mostly share a voxel, so
+// the left and the upper pixel's voxels are tried first. The table and the sums are members and
+// are reused from frame to frame; the output lists the voxels in the order they are first met,
+// so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/parallel.h"
@@ -21,7 +22,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 namespace tabletop_shapes {
 using voxel_key::floorToInt;
@@ -34,10 +40,61 @@ inline bool finitePoint(float x, float y, float z) {
 
 }  // namespace
 
+void Preprocessor::VoxelTable::clear() {
+  slots_.assign(std::max<size_t>(slots_.size(), 1024), Slot{voxel_key::kEmpty, 0});
+  sums.clear();
+}
+
+void Preprocessor::VoxelTable::grow() {
+  const size_t capacity = 2 * slots_.size();
+  slots_.assign(capacity, Slot{voxel_key::kEmpty, 0});
+  for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
+    const uint64_t key = sums[voxel].key;
+    size_t slot = voxel_key::hash(key) & (capacity - 1);
+    while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
+    slots_[slot] = {key, voxel};
+  }
+}
+
+uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key) {
+  // At most half full.
+  size_t mask = slots_.size() - 1, slot = voxel_key::hash(key) & mask;
+  while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
+    slot = (slot + 1) & mask;
+  }
+  if (slots_[slot].key == voxel_key::kEmpty) {
+    if (2 * (sums.size() + 1) > slots_.size()) {
+      grow();
+      mask = slots_.size() - 1;
+      slot = voxel_key::hash(key) & mask;
+      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & mask;
+    }
+    slots_[slot] = {key, static_cast<uint32_t>(sums.size())};
+    sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
+  }
+  return slots_[slot].voxel;
+}
+
+size_t Preprocessor::VoxelTable::bytes() const {
+  return slots_.capacity() * sizeof(Slot) + sums.capacity() * sizeof(VoxelSum);
+}
+
+void Preprocessor::VoxelTable::release() {
+  // 8x: a normal frame's own table is 2-4x its voxels; below 1 MB nothing is worth giving back.
+  constexpr size_t kSlack = 8, kKeepBytes = 1 << 20;
+  const size_t voxels = std::max<size_t>(sums.size(), 1024);
+  if (slots_.capacity() * sizeof(Slot) > kKeepBytes && slots_.capacity() > kSlack * voxels) {
+    std::vector<Slot>().swap(slots_);  // the next frame starts small and grows
+  }
+  if (sums.capacity() * sizeof(VoxelSum) > kKeepBytes && sums.capacity() > kSlack * voxels) {
+    sums.shrink_to_fit();
+  }
+}
+
 template <typename PointT>
-void Preprocessor::keyPixels(const pcl::PointCloud<PointT>& in, int width, int height,
-                             bool drop_flying) {
-  keys_.resize(in.points.size());
+void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool drop_flying,
+                           int first_row, int end_row, ViewBoundsGatherer::Band* view) {
+  const int height = static_cast<int>(keys_.size() / width);
   const bool limit_range = params_.max_range > 0.0f;
   const float max_range_sq = params_.max_range * params_.max_range;
   const bool grid = params_.leaf_size > 0.0f;
@@ -78,146 +135,160 @@ void Preprocessor::keyPixels(const pcl::PointCloud<PointT>& in, int width, int h
     return any_neighbour;
   };
   const float limit = voxel_key::kLimit;
-  auto keyRows = [&](int first_row, int end_row) {
-    for (int v = first_row; v < end_row; ++v) {
-      const PointT* row = &in.points[static_cast<size_t>(v) * width];
-      uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
-      for (int u = 0; u < width; ++u) {
-        const PointT& p = row[u];
-        keys[u] = voxel_key::kEmpty;
-        // Depth cameras mark missing depth in z. The costly flying pixel test last.
-        if (!finitePoint(p.x, p.y, p.z)) continue;
-        if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) continue;
-        if (drop_flying && flying(row, u, v)) continue;
-        if (!grid) {
-          keys[u] = 0;  // kept; no voxel
-          continue;
+  // The key of a pixel that passed the flying pixel test, kEmpty beyond the key's reach.
+  auto keyOf = [&](const PointT& p) {
+    if (!grid) return uint64_t{0};  // kept; no voxel
+    const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
+    // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
+    if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) {
+      return voxel_key::kEmpty;
+    }
+    return voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+  };
+  auto keyPixel = [&](const PointT* row, int u, int v) {
+    const PointT& p = row[u];
+    // Depth cameras mark missing depth in z. The costly flying pixel test last.
+    if (!finitePoint(p.x, p.y, p.z)) return voxel_key::kEmpty;
+    if (view) view->add(u, p.x, p.y, p.z);
+    if (limit_range && p.x * p.x + p.y * p.y + p.z * p.z > max_range_sq) return voxel_key::kEmpty;
+    if (drop_flying && flying(row, u, v)) return voxel_key::kEmpty;
+    return keyOf(p);
+  };
+#ifdef __SSE2__
+  // Four pixels at a time, with the float operations of the scalar tests in the same order (the
+  // same decisions): finiteness, range, the left neighbour's flying pixel test (it clears most
+  // points; the others take the scalar test of all neighbours), the view's extremes and the
+  // voxel coordinates.
+  const __m128 zero = _mm_setzero_ps(), eye_xs = _mm_set1_ps(eye_x), eye_ys = _mm_set1_ps(eye_y),
+               eye_zs = _mm_set1_ps(eye_z), along_weights = _mm_set1_ps(along_weight),
+               cot_sqs = _mm_set1_ps(cot_sq), max_range_sqs = _mm_set1_ps(max_range_sq),
+               inv_leafs = _mm_set1_ps(inv_leaf), limits = _mm_set1_ps(limit),
+               sign = _mm_set1_ps(-0.0f), huge = _mm_set1_ps(std::numeric_limits<float>::max());
+  __m128 min_tan_x = huge, max_tan_x = _mm_sub_ps(zero, huge), min_tan_y = huge,
+         max_tan_y = max_tan_x, min_z = huge;
+#endif
+  auto keyRow = [&](int v) {
+    const PointT* row = &in.points[static_cast<size_t>(v) * width];
+    uint64_t* keys = &keys_[static_cast<size_t>(v) * width];
+    int u = 0;
+#ifdef __SSE2__
+    if (view) {  // the row's first and last valid pixels; the ones between give extremes only
+      int first = 0, last = width - 1;
+      auto valid = [&](int c) {
+        return finitePoint(row[c].x, row[c].y, row[c].z) && row[c].z > 0.0f;
+      };
+      while (first < width && !valid(first)) ++first;
+      while (last > first && !valid(last)) --last;
+      if (first < width) view->add(first, row[first].x, row[first].y, row[first].z);
+      if (last > first) view->add(last, row[last].x, row[last].y, row[last].z);
+    }
+    __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
+    for (; u + 4 <= width; u += 4) {
+      __m128 x = _mm_loadu_ps(&row[u].x), y = _mm_loadu_ps(&row[u + 1].x),
+             z = _mm_loadu_ps(&row[u + 2].x), w = _mm_loadu_ps(&row[u + 3].x);
+      _MM_TRANSPOSE4_PS(x, y, z, w);
+      const __m128 finite = _mm_cmpeq_ps(
+          _mm_add_ps(_mm_add_ps(_mm_sub_ps(x, x), _mm_sub_ps(y, y)), _mm_sub_ps(z, z)), zero);
+      if (view) {
+        const __m128 valid = _mm_and_ps(finite, _mm_cmpgt_ps(z, zero));
+        const __m128 tan_x = _mm_div_ps(x, z), tan_y = _mm_div_ps(y, z);
+        auto pick = [&](__m128 value, __m128 otherwise) {
+          return _mm_or_ps(_mm_and_ps(valid, value), _mm_andnot_ps(valid, otherwise));
+        };
+        min_tan_x = _mm_min_ps(min_tan_x, pick(tan_x, huge));
+        max_tan_x = _mm_max_ps(max_tan_x, pick(tan_x, _mm_sub_ps(zero, huge)));
+        min_tan_y = _mm_min_ps(min_tan_y, pick(tan_y, huge));
+        max_tan_y = _mm_max_ps(max_tan_y, pick(tan_y, _mm_sub_ps(zero, huge)));
+        min_z = _mm_min_ps(min_z, pick(z, huge));
+      }
+      __m128 kept = finite;
+      if (limit_range) {
+        const __m128 range_sq =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, x), _mm_mul_ps(y, y)), _mm_mul_ps(z, z));
+        kept = _mm_and_ps(kept, _mm_cmple_ps(range_sq, max_range_sqs));
+      }
+      // The left neighbours: the previous pixel of each lane.
+      const __m128 shifted_x = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(x), 4)),
+                   shifted_y = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(y), 4)),
+                   shifted_z = _mm_castsi128_ps(_mm_slli_si128(_mm_castps_si128(z), 4));
+      const __m128 qx = _mm_move_ss(shifted_x, _mm_shuffle_ps(left_x, left_x, 0xff)),
+                   qy = _mm_move_ss(shifted_y, _mm_shuffle_ps(left_y, left_y, 0xff)),
+                   qz = _mm_move_ss(shifted_z, _mm_shuffle_ps(left_z, left_z, 0xff));
+      left_x = x, left_y = y, left_z = z;
+      int kept_lanes = _mm_movemask_ps(kept);
+      if (drop_flying && kept_lanes) {
+        const __m128 sx = _mm_sub_ps(x, eye_xs), sy = _mm_sub_ps(y, eye_ys),
+                     sz = _mm_sub_ps(z, eye_zs);
+        const __m128 sight_sq =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(sx, sx), _mm_mul_ps(sy, sy)), _mm_mul_ps(sz, sz));
+        const __m128 dx = _mm_sub_ps(qx, x), dy = _mm_sub_ps(qy, y), dz = _mm_sub_ps(qz, z);
+        const __m128 dot =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, sx), _mm_mul_ps(dy, sy)), _mm_mul_ps(dz, sz));
+        const __m128 along = _mm_mul_ps(_mm_mul_ps(dot, dot), along_weights);
+        const __m128 across = _mm_mul_ps(
+            _mm_mul_ps(cot_sqs, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                                           _mm_mul_ps(dz, dz))),
+            sight_sq);
+        const __m128 left_finite = _mm_cmpeq_ps(_mm_sub_ps(qz, qz), zero);
+        int cleared = _mm_movemask_ps(_mm_and_ps(left_finite, _mm_cmple_ps(along, across)));
+        if (u == 0) cleared &= ~1;  // the row's first pixel has no left neighbour
+        for (int lanes = kept_lanes & ~cleared; lanes; lanes &= lanes - 1) {
+          const int lane = __builtin_ctz(static_cast<unsigned>(lanes));
+          if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
         }
-        const float vx = p.x * inv_leaf, vy = p.y * inv_leaf, vz = p.z * inv_leaf;
-        // Coordinates beyond 2^20 voxels from the origin cannot come from a depth camera.
-        if (std::abs(vx) > limit || std::abs(vy) > limit || std::abs(vz) > limit) continue;
-        keys[u] = voxel_key::pack(floorToInt(vx), floorToInt(vy), floorToInt(vz));
+      }
+      if (!grid) {
+        for (int lane = 0; lane < 4; ++lane) {
+          keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
+        }
+        continue;
+      }
+      const __m128 vx = _mm_mul_ps(x, inv_leafs), vy = _mm_mul_ps(y, inv_leafs),
+                   vz = _mm_mul_ps(z, inv_leafs);
+      const __m128 reach = _mm_max_ps(_mm_max_ps(_mm_andnot_ps(sign, vx), _mm_andnot_ps(sign, vy)),
+                                      _mm_andnot_ps(sign, vz));
+      kept_lanes &= _mm_movemask_ps(_mm_cmple_ps(reach, limits));
+      auto floorOf = [](__m128 value) {  // as floorToInt, for |value| < 2^31
+        const __m128i truncated = _mm_cvttps_epi32(value);
+        return _mm_add_epi32(truncated,
+                             _mm_castps_si128(_mm_cmplt_ps(value, _mm_cvtepi32_ps(truncated))));
+      };
+      alignas(16) int32_t cx[4], cy[4], cz[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(cx), floorOf(vx));
+      _mm_store_si128(reinterpret_cast<__m128i*>(cy), floorOf(vy));
+      _mm_store_si128(reinterpret_cast<__m128i*>(cz), floorOf(vz));
+      for (int lane = 0; lane < 4; ++lane) {
+        keys[u + lane] = kept_lanes >> lane & 1 ? voxel_key::pack(cx[lane], cy[lane], cz[lane])
+                                                : voxel_key::kEmpty;
       }
     }
+#endif
+    // The rest one by one (with the view: a column added again or later keeps first and last).
+    for (; u < width; ++u) keys[u] = keyPixel(row, u, v);
   };
-  // Each pixel's key depends on the input alone: bands of rows on all cores. More bands than
-  // cores, so that a core slowed by other work takes fewer.
-  const unsigned threads = workerThreads();
-  const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
-  parallelFor(
-      static_cast<size_t>(bands),
-      [&](size_t band) {
-        keyRows(static_cast<int>(band * height / bands),
-                static_cast<int>((band + 1) * height / bands));
-      },
-      threads);
-}
 
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out) {
-  if (&in == &out) {  // in-place call: build the result separately, then swap
-    Cloud result;
-    applyImpl(in, result);
-    out.swap(result);
-    return;
+  for (int v = first_row; v < end_row; ++v) {
+    keyRow(v);
+    if (view) view_.endRow(*view, static_cast<size_t>(v));
   }
-  applyImpl(in, out);
-}
-
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out) {
-  applyImpl(in, out);
-}
-
-void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out) {
-  applyImpl(in, out);
-}
-
-size_t Preprocessor::bufferBytes() const {
-  return slots_.capacity() * sizeof(VoxelSlot) + sums_.capacity() * sizeof(VoxelSum) +
-         keys_.capacity() * sizeof(uint64_t) + row_voxels_.capacity() * sizeof(uint32_t);
-}
-
-void Preprocessor::releaseOversizedBuffers(size_t input_points) {
-  // 8x: a normal frame's own table is 2-4x its voxels; below 1 MB nothing is worth giving back.
-  constexpr size_t kSlack = 8, kKeepBytes = 1 << 20;
-  const size_t voxels = std::max<size_t>(sums_.size(), 1024);
-  if (slots_.capacity() * sizeof(VoxelSlot) > kKeepBytes && slots_.capacity() > kSlack * voxels) {
-    std::vector<VoxelSlot>().swap(slots_);  // the next frame starts small and grows
+#ifdef __SSE2__
+  if (view) {
+    auto lanes = [](__m128 value, float* out) { _mm_storeu_ps(out, value); };
+    alignas(16) float lx[4], hx[4], ly[4], hy[4], lz[4];
+    lanes(min_tan_x, lx), lanes(max_tan_x, hx), lanes(min_tan_y, ly), lanes(max_tan_y, hy);
+    lanes(min_z, lz);
+    for (int lane = 0; lane < 4; ++lane) {
+      view->addExtremes(lx[lane], hx[lane], ly[lane], hy[lane], lz[lane]);
+    }
   }
-  if (sums_.capacity() * sizeof(VoxelSum) > kKeepBytes && sums_.capacity() > kSlack * voxels) {
-    sums_.shrink_to_fit();
-  }
-  // One key per input point: kept while frames of about this size come.
-  constexpr size_t kKeySlack = 2;
-  if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
-      keys_.capacity() > kKeySlack * input_points) {
-    std::vector<uint64_t>().swap(keys_);
-  }
-  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
-      row_voxels_.capacity() > kKeySlack * input_points) {
-    std::vector<uint32_t>().swap(row_voxels_);
-  }
+#endif
 }
 
 template <typename PointT>
-void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
-  out.header = in.header;
-  out.points.clear();
-  out.width = 0;
-  out.height = 1;
-  out.is_dense = true;
-  out.sensor_origin_ = in.sensor_origin_;
-  out.sensor_orientation_ = in.sensor_orientation_;
-
-  // An unorganised cloud is one row without image neighbours (no flying pixels).
-  const bool organised = in.height > 1 && static_cast<size_t>(in.width) * in.height == in.size();
-  const int width = organised ? static_cast<int>(in.width) : static_cast<int>(in.size());
-  const int height = organised ? static_cast<int>(in.height) : 1;
-  keyPixels(in, width, height, organised && params_.flying_pixel_angle_deg > 0.0f);
-
-  if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
-    out.points.reserve(in.points.size());
-    for (size_t i = 0; i < in.points.size(); ++i) {
-      const PointT& p = in.points[i];
-      if (keys_[i] != voxel_key::kEmpty) out.points.emplace_back(p.x, p.y, p.z);
-    }
-    out.width = static_cast<uint32_t>(out.points.size());
-    releaseOversizedBuffers(in.points.size());
-    return;
-  }
-
-  // Keep the table at most half full: start from the last frame's size, grow when needed.
-  size_t capacity = std::max<size_t>(slots_.size(), 1024);
-  slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
-  sums_.clear();
-  auto grow = [&]() {
-    capacity *= 2;
-    slots_.assign(capacity, VoxelSlot{voxel_key::kEmpty, 0});
-    for (uint32_t voxel = 0; voxel < sums_.size(); ++voxel) {
-      const uint64_t key = sums_[voxel].key;
-      size_t slot = voxel_key::hash(key) & (capacity - 1);
-      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-      slots_[slot] = {key, voxel};
-    }
-  };
-  auto voxelOf = [&](uint64_t key) {
-    size_t slot = voxel_key::hash(key) & (capacity - 1);
-    while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
-      slot = (slot + 1) & (capacity - 1);
-    }
-    if (slots_[slot].key == voxel_key::kEmpty) {
-      if (2 * (sums_.size() + 1) > capacity) {
-        grow();
-        slot = voxel_key::hash(key) & (capacity - 1);
-        while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-      }
-      slots_[slot] = {key, static_cast<uint32_t>(sums_.size())};
-      sums_.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
-    }
-    return slots_[slot].voxel;
-  };
-
+void Preprocessor::sumVoxels(const pcl::PointCloud<PointT>& in, int width, int height) {
   // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
   // (row_voxels_ keeps the previous row's voxels) is taken without a hash lookup.
+  table_.clear();
   const bool rows = height > 1;
   row_voxels_.resize(rows ? 2 * static_cast<size_t>(width) : 0);
   uint32_t* above = row_voxels_.data();
@@ -230,25 +301,126 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out) {
       const uint64_t key = keys_[row + u];
       if (key == voxel_key::kEmpty) continue;
       if (key != last_key) {
-        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : voxelOf(key);
+        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : table_.voxelOf(key);
         last_key = key;
       }
       if (rows) current[u] = last_voxel;
       const PointT& p = in.points[row + u];
-      VoxelSum& sum = sums_[last_voxel];
+      VoxelSum& sum = table_.sums[last_voxel];
       sum.x += p.x, sum.y += p.y, sum.z += p.z;
       ++sum.count;
     }
     std::swap(above, current);
   }
+}
 
-  out.points.reserve(sums_.size());
-  for (const VoxelSum& sum : sums_) {
-    const double inv_count = 1.0 / sum.count;
-    out.points.emplace_back(static_cast<float>(sum.x * inv_count),
-                            static_cast<float>(sum.y * inv_count),
-                            static_cast<float>(sum.z * inv_count));
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out, ViewBounds* view) {
+  if (&in == &out) {  // in-place call: build the result separately, then swap
+    Cloud result;
+    applyImpl(in, result, view);
+    out.swap(result);
+    return;
   }
+  applyImpl(in, out, view);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGB>& in, Cloud& out,
+                         ViewBounds* view) {
+  applyImpl(in, out, view);
+}
+
+void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& out,
+                         ViewBounds* view) {
+  applyImpl(in, out, view);
+}
+
+size_t Preprocessor::bufferBytes() const {
+  return table_.bytes() + keys_.capacity() * sizeof(uint64_t) +
+         row_voxels_.capacity() * sizeof(uint32_t);
+}
+
+void Preprocessor::releaseOversizedBuffers(size_t input_points) {
+  table_.release();
+  // One key per input point: kept while frames of about this size come.
+  constexpr size_t kKeySlack = 2, kKeepBytes = 1 << 20;
+  if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
+      keys_.capacity() > kKeySlack * input_points) {
+    std::vector<uint64_t>().swap(keys_);
+  }
+  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
+      row_voxels_.capacity() > kKeySlack * input_points) {
+    std::vector<uint32_t>().swap(row_voxels_);
+  }
+}
+
+template <typename PointT>
+void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view) {
+  out.header = in.header;
+  out.points.clear();
+  out.width = 0;
+  out.height = 1;
+  out.is_dense = true;
+  out.sensor_origin_ = in.sensor_origin_;
+  out.sensor_orientation_ = in.sensor_orientation_;
+
+  // An unorganised cloud is one row without image neighbours (no flying pixels).
+  const bool organised = in.height > 1 && static_cast<size_t>(in.width) * in.height == in.size();
+  const int width = organised ? static_cast<int>(in.width) : static_cast<int>(in.size());
+  const int height = organised ? static_cast<int>(in.height) : 1;
+  const bool drop_flying = organised && params_.flying_pixel_angle_deg > 0.0f;
+  const bool gather_view = view && organised && width > 1;
+  keys_.resize(in.points.size());
+
+  // Each pixel's key depends on the input alone: bands of rows on all cores. More bands than
+  // cores, so that a core slowed by other work takes fewer.
+  const unsigned threads = workerThreads();
+  const int bands = threads > 1 ? std::min(height, static_cast<int>(4 * threads)) : 1;
+  if (gather_view) view_.reset(static_cast<size_t>(bands), static_cast<size_t>(height));
+  if (width > 0) {
+    parallelFor(
+        static_cast<size_t>(bands),
+        [&](size_t b) {
+          ViewBoundsGatherer::Band band_view;
+          keyRows(in, width, drop_flying, static_cast<int>(b * height / bands),
+                  static_cast<int>((b + 1) * height / bands), gather_view ? &band_view : nullptr);
+          if (gather_view) view_.setBand(b, band_view);
+        },
+        threads);
+  }
+  if (view) *view = gather_view ? view_.bounds() : ViewBounds();
+
+  if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
+    out.points.reserve(in.points.size());
+    for (size_t i = 0; i < in.points.size(); ++i) {
+      const PointT& p = in.points[i];
+      if (keys_[i] != voxel_key::kEmpty) out.points.emplace_back(p.x, p.y, p.z);
+    }
+    out.width = static_cast<uint32_t>(out.points.size());
+    releaseOversizedBuffers(in.points.size());
+    return;
+  }
+
+  // One pass in image order: each voxel's double sum adds its points in that order, and the
+  // voxels come out in the order they are first met, whatever the number of threads. (Summing
+  // per band on all cores and merging the bands' tables in image order was slower: most voxels
+  // hold one or two points, and the merge's inserts into the frame's table miss the cache.)
+  sumVoxels(in, width, height);
+  // The centroids, in parts on all cores.
+  const std::vector<VoxelSum>& sums = table_.sums;
+  out.points.resize(sums.size());
+  const size_t parts = std::min<size_t>(static_cast<size_t>(bands), sums.size());
+  parallelFor(
+      parts,
+      [&](size_t part) {
+        for (size_t i = part * sums.size() / parts, end = (part + 1) * sums.size() / parts; i < end;
+             ++i) {
+          const double inv_count = 1.0 / sums[i].count;
+          out.points[i] = pcl::PointXYZ(static_cast<float>(sums[i].x * inv_count),
+                                        static_cast<float>(sums[i].y * inv_count),
+                                        static_cast<float>(sums[i].z * inv_count));
+        }
+      },
+      threads);
   out.width = static_cast<uint32_t>(out.points.size());
   releaseOversizedBuffers(in.points.size());
 }

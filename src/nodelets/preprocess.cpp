@@ -159,9 +159,9 @@ class PreprocessNodelet : public nodelet::Nodelet {
       preprocessor_.setParams(params_);  // a reconfigured value applies from this frame on
     }
     auto output = boost::make_shared<Cloud>();
-    ViewBounds view = viewBoundsOf(*input);  // before the voxel grid: it needs the image layout
+    ViewBounds view;  // from the preprocessing's own pass over the image
+    preprocessor_.apply(*input, *output, &view);
     view.point_spacing = preprocessor_.params().leaf_size;
-    preprocessor_.apply(*input, *output);
     const size_t points_out = output->size();
     if (points_out == 0) {  // still published: every frame gets its (empty) answer downstream
       const std::string reason = input->empty()

@@ -155,6 +155,85 @@ TEST(Preprocess, SameCloudWithOneTwoAndFiveThreads) {
   setWorkerThreads(0);
 }
 
+// A voxel whose points lie in two bands of rows (keyed on different threads) gets them added in
+// image order, as one pass over the image adds them: here the order decides the float centroid
+// (summing per band and adding the bands' sums would give 0.25 + 2^-25). Voxel (0, 0, 0) of a 2 m
+// grid holds x = 1, 2^-24 (row 0's band) and twice 3 * 2^-55 (row 1's band). In image order
+// the double sum stays at 1 + 2^-24 (each 3 * 2^-55 is below half its last bit), whose quarter
+// 0.25 + 2^-26 lies halfway between two floats and rounds to the even 0.25; the band's own sum
+// 2^-24 + 6 * 2^-55 added at once would round up to 1 + 2^-24 + 2^-52, hence 0.25 + 2^-25.
+TEST(Preprocess, VoxelSumsAddInImageOrderWhateverTheBands) {
+  pcl::PointCloud<pcl::PointXYZ> in(3, 8, pcl::PointXYZ(kNaN, kNaN, kNaN));
+  const float tiny = std::ldexp(3.0f, -55);
+  in.at(0, 0) = pcl::PointXYZ(1.0f, 0.5f, 1.0f);
+  in.at(0, 1) = pcl::PointXYZ(std::ldexp(1.0f, -24), 0.5f, 1.0f);
+  in.at(1, 1) = pcl::PointXYZ(tiny, 0.5f, 1.0f);
+  in.at(2, 1) = pcl::PointXYZ(tiny, 0.5f, 1.0f);
+  const PreprocessParams params{2.0f, 3.0f, 0.0f};  // no flying pixel test: lone points
+  for (const unsigned threads : {1u, 2u, 5u}) {     // 1, 8 and 8 bands of one row
+    setWorkerThreads(threads);
+    Cloud out;
+    Preprocessor(params).apply(in, out);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_EQ(out[0].x, 0.25f) << threads << " threads";
+    EXPECT_EQ(out[0].y, 0.5f);
+    EXPECT_EQ(out[0].z, 1.0f);
+  }
+  setWorkerThreads(0);
+}
+
+// The view bounds come from the preprocessing's own pass over the pixels: the same as
+// viewBoundsOf's, whatever the number of threads, and near the known camera's (focal 525 px,
+// principal point (320, 240), the wall's columns 0-639 and rows 0-479 valid somewhere).
+TEST(Preprocess, ViewBoundsFromTheSamePassAreViewBoundsOfs) {
+  const pcl::PointCloud<pcl::PointXYZ> in = vgaCloud();
+  const ViewBounds reference = viewBoundsOf(in);
+  ASSERT_TRUE(reference.known);
+  EXPECT_NEAR(reference.min_tan_x, -320.0f / 525.0f, 1e-6f);
+  EXPECT_NEAR(reference.max_tan_x, 319.0f / 525.0f, 1e-6f);
+  EXPECT_NEAR(reference.min_tan_y, -240.0f / 525.0f, 1e-6f);
+  EXPECT_NEAR(reference.max_tan_y, 239.0f / 525.0f, 1e-6f);
+  EXPECT_NEAR(reference.pixel_tan, 1.0f / 525.0f, 1e-7f);
+  EXPECT_NEAR(reference.min_depth, 1.0f, 1e-6f);
+  for (const unsigned threads : {1u, 2u, 5u}) {
+    setWorkerThreads(threads);
+    Cloud out;
+    ViewBounds view;
+    Preprocessor().apply(in, out, &view);
+    EXPECT_TRUE(view.known);
+    EXPECT_EQ(view.min_tan_x, reference.min_tan_x) << threads << " threads";
+    EXPECT_EQ(view.max_tan_x, reference.max_tan_x);
+    EXPECT_EQ(view.min_tan_y, reference.min_tan_y);
+    EXPECT_EQ(view.max_tan_y, reference.max_tan_y);
+    EXPECT_EQ(view.pixel_tan, reference.pixel_tan);
+    EXPECT_EQ(view.min_depth, reference.min_depth);
+  }
+  setWorkerThreads(0);
+  // 637 columns: pixels four at a time, then the last one alone.
+  pcl::PointCloud<pcl::PointXYZ> narrow(637, 480);
+  for (int v = 0; v < 480; ++v) {
+    for (int u = 0; u < 637; ++u) narrow.at(u, v) = in.at(u + 3, v);
+  }
+  ViewBounds narrow_view;
+  Cloud narrow_out;
+  Preprocessor().apply(narrow, narrow_out, &narrow_view);
+  const ViewBounds narrow_reference = viewBoundsOf(narrow);
+  EXPECT_EQ(narrow_view.min_tan_x, narrow_reference.min_tan_x);
+  EXPECT_EQ(narrow_view.max_tan_x, narrow_reference.max_tan_x);
+  EXPECT_EQ(narrow_view.pixel_tan, narrow_reference.pixel_tan);
+  EXPECT_NEAR(narrow_view.max_tan_x, 319.0f / 525.0f, 1e-6f);
+  // An unorganised cloud has no image: unknown, as viewBoundsOf says.
+  pcl::PointCloud<pcl::PointXYZ> unorganised = in;
+  unorganised.width = static_cast<uint32_t>(in.size());
+  unorganised.height = 1;
+  Cloud out;
+  ViewBounds view;
+  view.known = true;
+  Preprocessor().apply(unorganised, out, &view);
+  EXPECT_FALSE(view.known);
+  EXPECT_FALSE(viewBoundsOf(unorganised).known);
+}
+
 TEST(Preprocess, ColourInputGivesTheSameCloudAndInPlaceWorks) {
   const pcl::PointCloud<pcl::PointXYZ> xyz = vgaCloud();
   pcl::PointCloud<pcl::PointXYZRGBA> rgba;
