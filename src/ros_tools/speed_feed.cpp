@@ -10,6 +10,8 @@
 // stamps its i-th cluster i ms after the input).
 //   speed_feed --out CSV (--objects N [--width W --height H] | --pcd FILE...) [--frames N]
 //     [--warmup N] [--rate HZ] [--timeout S] [--topic T] [--ack T] [--ack-type objects|xyz]
+//     [--xyz]   (x y z only, 16 bytes a point, as openni2_launch's depth/points; else x y z rgb,
+//                32 bytes a point, as depth_registered/points)
 #include "tabletop_shapes/Objects.h"
 #include "tabletop_shapes/sim/speed_scenes.h"
 
@@ -40,6 +42,7 @@ struct Options {
   std::vector<std::string> pcds;
   int objects = 0, width = 640, height = 480, frames = 300, warmup = 10, renders = 4;
   double rate = 0.0, timeout = 2.0;
+  bool xyz_only = false;
 };
 
 bool parse(int argc, char** argv, Options& o) {
@@ -74,6 +77,8 @@ bool parse(int argc, char** argv, Options& o) {
       o.timeout = std::atof(value().c_str());
     else if (arg == "--pcd")
       o.pcds.push_back(value());
+    else if (arg == "--xyz")
+      o.xyz_only = true;
     else
       return false;
   }
@@ -112,17 +117,26 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: speed_feed --out CSV (--objects N [--width W --height H] | --pcd FILE...)"
                  " [--frames N] [--warmup N] [--rate HZ] [--timeout S] [--topic T] [--ack T]"
-                 " [--ack-type objects|xyz]\n");
+                 " [--ack-type objects|xyz] [--xyz]\n");
     return 2;
   }
   // The clouds, converted once: publishing costs only the serialisation, as for a driver.
   std::vector<sensor_msgs::PointCloud2> clouds;
+  auto addCloud = [&](const pcl::PointCloud<pcl::PointXYZRGB>& cloud) {
+    clouds.emplace_back();
+    if (!options.xyz_only) {
+      pcl::toROSMsg(cloud, clouds.back());
+      return;
+    }
+    pcl::PointCloud<pcl::PointXYZ> xyz;
+    pcl::copyPointCloud(cloud, xyz);  // keeps the organised layout and the NaNs
+    pcl::toROSMsg(xyz, clouds.back());
+  };
   if (options.objects > 0) {
     for (int r = 0; r < options.renders; ++r) {
       const sim::RenderedScene scene = sim::renderScene(sim::speedScene(
           options.objects, options.width, options.height, static_cast<uint32_t>(r + 1)));
-      clouds.emplace_back();
-      pcl::toROSMsg(*scene.cloud, clouds.back());
+      addCloud(*scene.cloud);
     }
   } else {
     for (const std::string& path : options.pcds) {
@@ -131,8 +145,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "speed_feed: cannot read %s\n", path.c_str());
         return 2;
       }
-      clouds.emplace_back();
-      pcl::toROSMsg(cloud, clouds.back());
+      addCloud(cloud);
     }
   }
 
