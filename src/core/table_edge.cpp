@@ -50,6 +50,11 @@ std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
   };
   float deepest = -std::numeric_limits<float>::max(), deepest_band = 0.0f, deepest_range = 0.0f;
   size_t beyond_the_band = 0;
+  // Stands on the table once enough of its points stand beyond the band: the count only grows,
+  // so the rest of the points cannot change the answer (most clusters stop after ~10 %).
+  auto standsOnTheTable = [&]() {
+    return beyond_the_band >= kMinShareBeyondTheBand * cluster.size();
+  };
   for (const Point& point : cluster.points) {
     const Eigen::Vector3f p = point.getVector3fMap();
     const float inside = insideHull(p);
@@ -65,6 +70,7 @@ std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
       if (!view || footOutOfView(p - height * table.normal, *view)) return "";
       if (-inside >= band - hull_margin) {
         ++beyond_the_band;
+        if (standsOnTheTable()) return "";
       } else if (inside - band > deepest - deepest_band) {
         deepest = inside, deepest_band = band, deepest_range = range;
       }
@@ -83,11 +89,12 @@ std::string whyNotOnTheTable(const Cloud& cluster, const Plane& table,
     const float deeper = std::max(inside, hidden);
     if (deeper >= band) {
       ++beyond_the_band;
+      if (standsOnTheTable()) return "";
     } else if (deeper - band > deepest - deepest_band) {
       deepest = deeper, deepest_band = band, deepest_range = range;
     }
   }
-  if (beyond_the_band >= kMinShareBeyondTheBand * cluster.size()) return "";
+  if (standsOnTheTable()) return "";
   char reason[480];
   const int length = std::snprintf(
       reason, sizeof reason,
