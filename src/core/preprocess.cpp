@@ -17,6 +17,7 @@
 // so it is deterministic.
 #include "tabletop_shapes/core/preprocess.h"
 
+#include "tabletop_shapes/core/float4.h"
 #include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
@@ -184,9 +185,9 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
     }
     __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
     for (; u + 4 <= width; u += 4) {
-      __m128 x = _mm_loadu_ps(&row[u].x), y = _mm_loadu_ps(&row[u + 1].x),
-             z = _mm_loadu_ps(&row[u + 2].x), w = _mm_loadu_ps(&row[u + 3].x);
-      _MM_TRANSPOSE4_PS(x, y, z, w);
+      Float4 lanes_x, lanes_y, lanes_z;
+      coordinatesOfFour(row + u, lanes_x, lanes_y, lanes_z);
+      const __m128 x = (__m128)lanes_x, y = (__m128)lanes_y, z = (__m128)lanes_z;
       const __m128 finite = _mm_cmpeq_ps(
           _mm_add_ps(_mm_add_ps(_mm_sub_ps(x, x), _mm_sub_ps(y, y)), _mm_sub_ps(z, z)), zero);
       if (view) {

@@ -186,10 +186,9 @@ void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float
                nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
   const Float4 lowest = broadcast(low), highest = broadcast(high);
   for (; i + 4 <= cloud.size(); i += 4) {
-    __m128 x = _mm_loadu_ps(cloud[i].data), y = _mm_loadu_ps(cloud[i + 1].data),
-           z = _mm_loadu_ps(cloud[i + 2].data), w = _mm_loadu_ps(cloud[i + 3].data);
-    _MM_TRANSPOSE4_PS(x, y, z, w);  // x, y, z: the four points' coordinates
-    const Float4 distance = (nx * (Float4)x + (ny * (Float4)y + nz * (Float4)z)) + d;
+    Float4 x, y, z;
+    coordinatesOfFour(&cloud[i], x, y, z);
+    const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
     const Int4 within = inclusive ? (distance >= lowest) & (distance <= highest)
                                   : (distance > lowest) & (distance < highest);
     for (unsigned lanes = lanesOf(within); lanes != 0; lanes &= lanes - 1) {

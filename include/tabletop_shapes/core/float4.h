@@ -1,5 +1,6 @@
 // Four floats at once with GCC's vector extension (SSE on x86): the types and the few lane
-// operations the vectorised point tests share (plane_support, round_lid). Each lane does the
+// operations the vectorised point tests share (plane_support, round_lid, preprocess,
+// table_segmentation). Each lane does the
 // float operations of the scalar code, so the results are the same to the bit.
 #pragma once
 
@@ -26,6 +27,18 @@ inline unsigned lanesOf(Int4 mask) {
   return (mask[0] & 1u) | (mask[1] & 2u) | (mask[2] & 4u) | (mask[3] & 8u);
 #endif
 }
+
+#ifdef __SSE__
+// x, y and z of four consecutive PCL points (each starts with x y z and a fourth float) as
+// lanes: the loads and the transpose the point passes share (preprocess, table_segmentation).
+template <typename PointT>
+inline void coordinatesOfFour(const PointT* points, Float4& x, Float4& y, Float4& z) {
+  __m128 a = _mm_loadu_ps(&points[0].x), b = _mm_loadu_ps(&points[1].x),
+         c = _mm_loadu_ps(&points[2].x), w = _mm_loadu_ps(&points[3].x);
+  _MM_TRANSPOSE4_PS(a, b, c, w);
+  x = (Float4)a, y = (Float4)b, z = (Float4)c;
+}
+#endif
 
 inline Float4 squareRoot(Float4 value) {
 #ifdef __SSE__
