@@ -119,7 +119,10 @@ struct BoxOnTable {
 
 // Table frame: z up, the table top is z = 0. The camera stands 0.9 m in front of the table,
 // 0.6 m above it, pitched 40 deg down and rolled 3 deg. The table shows where no box stands.
-SyntheticScene makeScene(bool with_table, const std::vector<BoxOnTable>& boxes) {
+// The table spans x in [-half_x, half_x], y in [min_y, max_y].
+SyntheticScene makeScene(bool with_table, const std::vector<BoxOnTable>& boxes,
+                         float half_x = kTableHalfX, float min_y = kTableMinY,
+                         float max_y = kTableMaxY) {
   SyntheticScene scene;
   const Eigen::Vector3f camera(0.0f, -0.9f, 0.6f);
   const float pitch = degToRad(40.0f);
@@ -144,11 +147,11 @@ SyntheticScene makeScene(bool with_table, const std::vector<BoxOnTable>& boxes) 
     });
   };
   auto onTable = [&](float x, float y) {
-    return std::abs(x) <= kTableHalfX && y >= kTableMinY && y <= kTableMaxY;
+    return std::abs(x) <= half_x && y >= min_y && y <= max_y;
   };
   if (with_table) {
-    for (float x = -kTableHalfX; x <= kTableHalfX; x += spacing) {
-      for (float y = kTableMinY; y <= kTableMaxY; y += spacing) {
+    for (float x = -half_x; x <= half_x; x += spacing) {
+      for (float y = min_y; y <= max_y; y += spacing) {
         if (inBoxFootprint(x, y)) continue;
         world.push_back(Point(x, y, noise(rng)));
       }
@@ -254,6 +257,45 @@ TEST(TableSegmenter, ChoosesTheTableNotTheBiggerFloor) {
     ASSERT_LT(q.z(), kBoxSize.z() + 0.005f);
   }
   EXPECT_GT(result.object_points->size(), 0.9 * scene.box_points_above);
+}
+
+// A frame of more than 20000 points (here the floor's 100k) is searched for the table on a
+// sample, every k-th point; min_inliers (500) still counts the frame's points: a 16 x 16 cm table
+// of ~950 points (~190 of the sample) is found, a 10 x 10 cm one of ~300 is not, and the table's
+// inliers and object points are those of every point.
+TEST(TableSegmenter, LargeFrameIsSearchedOnASampleWithMinInliersInFramePoints) {
+  const BoxOnTable box{Eigen::Vector3f(0.06f, 0.06f, 0.08f), Eigen::Vector2f(0.0f, 0.4f)};
+  for (const float half_side : {0.08f, 0.05f}) {
+    SCOPED_TRACE(half_side);
+    const SyntheticScene scene =
+        makeScene(true, {box}, half_side, box.centre.y() - half_side, box.centre.y() + half_side);
+    ASSERT_GT(scene.cloud->size(), 100000u);
+    TableParams params;
+    params.up = scene.up;
+    const TableResult result = TableSegmenter(params).segment(scene.cloud);
+    ASSERT_TRUE(result.found) << result.reason;
+    if (half_side < 0.06f) {
+      // Not the table itself (other planes, the floor or slices through the box, may be chosen).
+      EXPECT_GT(std::abs(result.plane.d - scene.table.d), 0.01f);
+      continue;
+    }
+    // The plane through the table's centre (a 16 cm table 1 m away: its tilt moves d at the
+    // camera by millimetres).
+    const Eigen::Vector3f table_centre =
+        scene.table_to_camera * Eigen::Vector3f(0.0f, box.centre.y() + 0.05f, 0.0f);
+    EXPECT_LT(angleDeg(result.plane.normal, scene.table.normal), 0.5f);
+    EXPECT_LT(std::abs(result.plane.signedDistance(table_centre)), 0.001f)
+        << angleDeg(result.plane.normal, scene.table.normal);
+    int within = 0;
+    for (const Point& p : scene.cloud->points) {
+      within +=
+          std::abs(result.plane.signedDistance(p.getVector3fMap())) <= params.distance_threshold;
+    }
+    EXPECT_GT(result.inliers, 900);
+    EXPECT_EQ(result.inliers, within);
+    EXPECT_EQ(result.table_points->size(), static_cast<size_t>(within));
+    EXPECT_GT(result.object_points->size(), 0.9 * scene.box_points_above);
+  }
 }
 
 // Flying pixels between the table's near edge and the floor lie on lines of sight that pass
