@@ -15,70 +15,23 @@ namespace {
 // distances).
 constexpr float kSurelyInside = 1e-5f;  // [m]
 
-// Drops the points that lie surely inside the octagon of the extreme points along x, y and the
-// two diagonals (Akl-Toussaint): they cannot be on the hull, and sorting the rest instead of
-// all is what makes the hull of a table plane's ~100k points cheap. The hull is the same.
-// Both passes run four lanes at a time (the four directions x, x + y, y, y - x, their maxima
-// and minima; then four edges per test), with each lane's float operations those of the plain
-// loops: the same extremes (the first point reaching each) and the same points kept.
+// Drops the points that lie surely inside their ExtremeOctagon: they cannot be on the hull, and
+// sorting the rest instead of all is what makes the hull of a table plane's ~100k points cheap.
+// The hull is the same.
 void dropSurelyInside(std::vector<Eigen::Vector2f>& points) {
   if (points.size() < 16) return;
-  // The points with the largest x, x + y, y, y - x, -x, -x - y, -y, x - y: counter-clockwise
-  // on the hull (support points of directions at 0, 45, ..., 315 deg). The last four are the
-  // negated first four ((-x) - y is -(x + y) to the bit), so their maxima are the minima.
-  auto alongOf = [](const Eigen::Vector2f& p) {
-    return Float4{p.x(), p.x() + p.y(), p.y(), p.y() - p.x()};
-  };
-  Float4 highest = broadcast(-std::numeric_limits<float>::max());
-  Float4 lowest = broadcast(std::numeric_limits<float>::max());
-  Int4 at_highest = {0, 0, 0, 0}, at_lowest = at_highest;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Float4 along = alongOf(points[i]);
-    const Int4 index = Int4{} + static_cast<int>(i);
-    const Int4 higher = along > highest, lower = along < lowest;
-    highest = higher ? along : highest;
-    at_highest = higher ? index : at_highest;
-    lowest = lower ? along : lowest;
-    at_lowest = lower ? index : at_lowest;
-  }
-  const Eigen::Vector2f* extreme[8];
-  for (int d = 0; d < 4; ++d) {
-    extreme[d] = &points[at_highest[d]];
-    extreme[d + 4] = &points[at_lowest[d]];
-  }
-  // Each edge as a unit inward normal and offset: inside when normal . p > offset. Unused lanes
-  // (fewer than 8 edges) hold 0 . p <= -infinity, never outside.
-  const float infinity = std::numeric_limits<float>::infinity();
-  Float4 nx[2] = {Float4{}, Float4{}}, ny[2] = {Float4{}, Float4{}};
-  Float4 offset[2] = {broadcast(-infinity), broadcast(-infinity)};
-  int edges = 0;
-  for (int d = 0; d < 8; ++d) {
-    const Eigen::Vector2f from = *extreme[d], edge = *extreme[(d + 1) % 8] - from;
-    const float length = edge.norm();
-    if (!(length > 0.0f)) continue;
-    const float edge_nx = -edge.y() / length, edge_ny = edge.x() / length;
-    nx[edges / 4][edges % 4] = edge_nx, ny[edges / 4][edges % 4] = edge_ny;
-    offset[edges / 4][edges % 4] = edge_nx * from.x() + edge_ny * from.y() + kSurelyInside;
-    ++edges;
-  }
-  if (edges < 3) return;
-  // Kept: the points not surely inside, i.e. not farther in than the offset from some edge.
+  const ExtremeOctagon octagon(points, kSurelyInside);
   size_t kept = 0;
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector2f p = points[i];
-    const Float4 x = broadcast(p.x()), y = broadcast(p.y());
-    const Int4 outside =
-        (nx[0] * x + ny[0] * y <= offset[0]) | (nx[1] * x + ny[1] * y <= offset[1]);
     points[kept] = p;
-    kept += lanesOf(outside) != 0u;
+    kept += !octagon.surelyInside(p);
   }
   points.resize(kept);
 }
 
-}  // namespace
-
-std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
-  dropSurelyInside(points);
+// Andrew's monotone chain over points without those surely inside.
+std::vector<Eigen::Vector2f> monotoneChain(std::vector<Eigen::Vector2f> points) {
   std::sort(points.begin(), points.end(), [](const Eigen::Vector2f& a, const Eigen::Vector2f& b) {
     return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
   });
@@ -99,6 +52,71 @@ std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
   }
   hull.resize(k - 1);  // the last point repeats the first
   return hull;
+}
+
+}  // namespace
+
+// Both passes over the points run four lanes at a time (the four directions x, x + y, y, y - x,
+// their maxima and minima; then four edges per test), with each lane's float operations those
+// of the plain loops: the same extremes (the first point reaching each) and the same points kept.
+ExtremeOctagon::ExtremeOctagon(const std::vector<Eigen::Vector2f>& points, float margin) {
+  const float infinity = std::numeric_limits<float>::infinity();
+  // Until the edges are known: 0 . p <= infinity, every point outside.
+  nx_[0] = nx_[1] = ny_[0] = ny_[1] = Float4{};
+  offset_[0] = offset_[1] = broadcast(infinity);
+  if (points.empty()) return;
+  // The last four directions are the negated first four ((-x) - y is -(x + y) to the bit), so
+  // their maxima are the minima.
+  auto alongOf = [](const Eigen::Vector2f& p) {
+    return Float4{p.x(), p.x() + p.y(), p.y(), p.y() - p.x()};
+  };
+  Float4 highest = broadcast(-std::numeric_limits<float>::max());
+  Float4 lowest = broadcast(std::numeric_limits<float>::max());
+  Int4 at_highest = {0, 0, 0, 0}, at_lowest = at_highest;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Float4 along = alongOf(points[i]);
+    const Int4 index = Int4{} + static_cast<int>(i);
+    const Int4 higher = along > highest, lower = along < lowest;
+    highest = higher ? along : highest;
+    at_highest = higher ? index : at_highest;
+    lowest = lower ? along : lowest;
+    at_lowest = lower ? index : at_lowest;
+  }
+  for (int d = 0; d < 4; ++d) {
+    corners_[d] = points[at_highest[d]];
+    corners_[d + 4] = points[at_lowest[d]];
+  }
+  Float4 nx[2] = {Float4{}, Float4{}}, ny[2] = {Float4{}, Float4{}};
+  Float4 offset[2] = {broadcast(-infinity), broadcast(-infinity)};
+  int edges = 0;
+  for (int d = 0; d < 8; ++d) {
+    const Eigen::Vector2f from = corners_[d], edge = corners_[(d + 1) % 8] - from;
+    const float length = edge.norm();
+    if (!(length > 0.0f)) continue;
+    const float edge_nx = -edge.y() / length, edge_ny = edge.x() / length;
+    nx[edges / 4][edges % 4] = edge_nx, ny[edges / 4][edges % 4] = edge_ny;
+    offset[edges / 4][edges % 4] = edge_nx * from.x() + edge_ny * from.y() + margin;
+    ++edges;
+  }
+  if (edges < 3) return;  // no point is surely inside
+  for (int half = 0; half < 2; ++half) {
+    nx_[half] = nx[half], ny_[half] = ny[half], offset_[half] = offset[half];
+  }
+  usable_ = true;
+}
+
+bool ExtremeOctagon::within(const std::vector<Eigen::Vector2f>& hull, float tolerance) const {
+  if (!usable_) return true;  // no point was surely inside
+  if (hull.size() < 3) return false;
+  for (const Eigen::Vector2f& corner : corners_) {
+    if (!(insideDistance(hull, corner) >= -tolerance)) return false;
+  }
+  return true;
+}
+
+std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points) {
+  dropSurelyInside(points);
+  return monotoneChain(std::move(points));
 }
 
 namespace {

@@ -388,17 +388,36 @@ bool ransacPlane(const Cloud& cloud, const std::vector<int>& indices, const Tabl
   return true;
 }
 
-void buildHull(const Cloud& cloud, Candidate& candidate) {
+// The candidate's hull. `inside`: points known to lie within it (the hull of a sample of its
+// inliers, on a plane a few micrometres from this one at the hull): the inliers surely inside
+// the ExtremeOctagon of those points are dropped as they are projected, before they are stored
+// and sorted. The hull is the same; should the octagon not lie within it (some of `inside` out
+// of the hull), it is made again from all inliers.
+void buildHull(const Cloud& cloud, Candidate& candidate,
+               const std::vector<Eigen::Vector3f>& inside = {}) {
   const Eigen::Vector3f& n = candidate.plane.normal;
   candidate.u = n.unitOrthogonal();
   candidate.v = n.cross(candidate.u);
+  std::vector<Eigen::Vector2f> inner;
+  for (const Eigen::Vector3f& p : inside)
+    inner.emplace_back(candidate.u.dot(p), candidate.v.dot(p));
+  constexpr float kInsideTolerance = 5e-5f;  // [m]
+  const ExtremeOctagon octagon(inner, 2 * kInsideTolerance);
   std::vector<Eigen::Vector2f> projected;
-  projected.reserve(candidate.inliers.size());
-  for (int i : candidate.inliers) {
-    const Eigen::Vector3f p = cloud[i].getVector3fMap();
-    projected.emplace_back(candidate.u.dot(p), candidate.v.dot(p));
-  }
+  auto projectInliers = [&](bool drop_surely_inside) {
+    projected.clear();
+    for (int i : candidate.inliers) {
+      const Eigen::Vector3f p = cloud[i].getVector3fMap();
+      const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+      if (!drop_surely_inside || !octagon.surelyInside(q)) projected.push_back(q);
+    }
+  };
+  projectInliers(true);
   candidate.hull_2d = convexHull2d(std::move(projected));
+  if (!octagon.within(candidate.hull_2d, kInsideTolerance)) {
+    projectInliers(false);
+    candidate.hull_2d = convexHull2d(std::move(projected));
+  }
   candidate.hull_edges = PolygonEdges(candidate.hull_2d);
   const Eigen::Vector3f origin = -candidate.plane.d * n;  // the plane point nearest the origin
   candidate.hull.clear();
@@ -1121,7 +1140,7 @@ Candidate onEveryPoint(const Cloud& frame, const Candidate& found, const TablePa
   collect(table.plane, params.distance_threshold, table.inliers);
   refitOnDensestSlab(frame, constraint, params.distance_threshold, collect, table.plane,
                      table.inliers);
-  buildHull(frame, table);
+  buildHull(frame, table, found.hull);
   return table;
 }
 

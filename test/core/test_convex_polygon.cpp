@@ -65,6 +65,39 @@ TEST(ConvexHull2d, DegenerateInputStaysDegenerate) {
   EXPECT_LT(hull.size(), 3u);
 }
 
+// The octagon of a diamond's and a square's points: points farther inside than the margin are
+// surely inside, points within the margin of an edge, on it or outside are not; within() holds
+// for hulls that contain the octagon (up to the tolerance) and fails for a smaller one.
+TEST(ExtremeOctagon, SurelyInsideBeyondTheMarginAndWithinHullsHoldingIt) {
+  // A square 0.4 m wide centred at (1, 0): its extreme points along the diagonals are its
+  // corners, those along x and y the first points reaching them (corners too).
+  const std::vector<Eigen::Vector2f> square = {
+      {0.8f, -0.2f}, {1.2f, -0.2f}, {1.2f, 0.2f}, {0.8f, 0.2f}, {1.0f, 0.0f}};
+  const float margin = 1e-3f;
+  const ExtremeOctagon octagon(square, margin);
+  EXPECT_TRUE(octagon.surelyInside({1.0f, 0.0f}));
+  EXPECT_TRUE(octagon.surelyInside({1.19f, 0.19f}));
+  EXPECT_FALSE(octagon.surelyInside({1.1995f, 0.0f}));  // within the margin of the edge x = 1.2
+  EXPECT_FALSE(octagon.surelyInside({1.2f, 0.0f}));     // on it
+  EXPECT_FALSE(octagon.surelyInside({1.3f, 0.0f}));
+  EXPECT_FALSE(octagon.surelyInside({1.0f, -0.25f}));
+  const std::vector<Eigen::Vector2f> hull = convexHull2d(square);
+  EXPECT_TRUE(octagon.within(hull, 1e-6f));
+  const std::vector<Eigen::Vector2f> larger = {
+      {0.7f, -0.3f}, {1.3f, -0.3f}, {1.3f, 0.3f}, {0.7f, 0.3f}};
+  EXPECT_TRUE(octagon.within(larger, 0.0f));
+  const std::vector<Eigen::Vector2f> smaller = {
+      {0.8f, -0.2f}, {1.19f, -0.2f}, {1.19f, 0.2f}, {0.8f, 0.2f}};
+  EXPECT_FALSE(octagon.within(smaller, 1e-3f));  // its corners stand 1 cm outside
+  EXPECT_TRUE(octagon.within(smaller, 0.02f));
+  // Fewer than 3 distinct extreme points: nothing is surely inside, and any hull holds it.
+  const ExtremeOctagon degenerate({{0.0f, 0.0f}, {1.0f, 1.0f}}, margin);
+  EXPECT_FALSE(degenerate.surelyInside({0.5f, 0.5f}));
+  EXPECT_TRUE(degenerate.within(hull, 0.0f));
+  const ExtremeOctagon none({}, margin);
+  EXPECT_FALSE(none.surelyInside({1.0f, 0.0f}));
+}
+
 TEST(PolygonEdges, SameDistancesAsInsideDistanceAndInsideByItsThreshold) {
   // A hexagon with a repeated vertex (a zero-length edge, skipped by both), probed on a grid
   // reaching 0.3 m beyond it, and exactly on an edge's line.

@@ -1,6 +1,8 @@
 // Convex polygons in a plane: the table's hull, object footprints on the table.
 #pragma once
 
+#include "tabletop_shapes/core/float4.h"
+
 #include <Eigen/Core>
 
 #include <vector>
@@ -10,6 +12,31 @@ namespace tabletop_shapes {
 // Convex hull (Andrew's monotone chain), counter-clockwise, without collinear points; fewer
 // than 3 points when the input is degenerate.
 std::vector<Eigen::Vector2f> convexHull2d(std::vector<Eigen::Vector2f> points);
+
+// Akl-Toussaint's octagon of a point set: its points extreme along x, x + y, y, y - x and the
+// opposite directions (the first point reaching each), counter-clockwise. A point farther than
+// `margin` inside it is no vertex of the convex hull of any set whose hull holds the octagon.
+class ExtremeOctagon {
+ public:
+  ExtremeOctagon(const std::vector<Eigen::Vector2f>& points, float margin);
+  // False for every point when the octagon has fewer than 3 edges (fewer than 3 distinct
+  // extreme points).
+  bool surelyInside(const Eigen::Vector2f& p) const {
+    const Float4 x = broadcast(p.x()), y = broadcast(p.y());
+    return lanesOf((nx_[0] * x + ny_[0] * y <= offset_[0]) |
+                   (nx_[1] * x + ny_[1] * y <= offset_[1])) == 0u;
+  }
+  // True when no corner lies farther than `tolerance` outside the counter-clockwise convex
+  // `hull`: with a tolerance below the margin, the points surely inside the octagon lie in it.
+  bool within(const std::vector<Eigen::Vector2f>& hull, float tolerance) const;
+
+ private:
+  Eigen::Vector2f corners_[8];
+  // Each edge as a unit inward normal and offset: inside when normal . p > offset. Unused lanes
+  // (fewer than 8 edges) hold 0 . p <= -infinity, never outside.
+  Float4 nx_[2], ny_[2], offset_[2];
+  bool usable_ = false;  // at least 3 edges
+};
 
 // Distance of q inside the counter-clockwise convex polygon to its boundary (negative outside).
 float insideDistance(const std::vector<Eigen::Vector2f>& hull, const Eigen::Vector2f& q);
