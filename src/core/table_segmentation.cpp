@@ -1238,7 +1238,9 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
 
   result.found = true;
   result.plane = table.plane;
-  result.depth_noise_at_one_metre = surfaceNoiseOf(*cloud, table).at_one_metre;
+  // The depth noise from the chosen plane's inliers among the search's points (computed already
+  // by hasPointsBelow): the same statistic, on every k-th inlier.
+  result.depth_noise_at_one_metre = surfaceNoiseOf(search, candidates[chosen]).at_one_metre;
   addPointsOverTheHiddenTable(*cloud, table, params_, result.depth_noise_at_one_metre, objects);
   result.inliers = static_cast<int>(table.inliers.size());
   result.hull = table.hull;
