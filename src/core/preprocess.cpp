@@ -377,7 +377,6 @@ void Preprocessor::releaseOversizedBuffers(size_t input_points) {
 template <typename PointT>
 void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view) {
   out.header = in.header;
-  out.points.clear();
   out.width = 0;
   out.height = 1;
   out.is_dense = true;
@@ -411,6 +410,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   if (view) *view = gather_view ? view_.bounds() : ViewBounds();
 
   if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
+    out.points.clear();
     out.points.reserve(in.points.size());
     for (size_t i = 0; i < in.points.size(); ++i) {
       const PointT& p = in.points[i];
@@ -428,6 +428,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   sumVoxels(in, width, height);
   // The centroids, in parts on all cores.
   const std::vector<VoxelSum>& sums = table_.sums;
+  // The points a reused cloud held are overwritten, not zeroed first.
   out.points.resize(sums.size());
   const size_t parts = std::min<size_t>(static_cast<size_t>(bands), sums.size());
   parallelFor(
