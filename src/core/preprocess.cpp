@@ -184,6 +184,9 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
       if (last > first) view->add(last, row[last].x, row[last].y, row[last].z);
     }
     __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
+    // The extremes in locals (registers), not in the accumulators the lambda captures.
+    __m128 row_min_tan_x = min_tan_x, row_max_tan_x = max_tan_x, row_min_tan_y = min_tan_y,
+           row_max_tan_y = max_tan_y, row_min_z = min_z;
     for (; u + 4 <= width; u += 4) {
       Float4 lanes_x, lanes_y, lanes_z;
       coordinatesOfFour(row + u, lanes_x, lanes_y, lanes_z);
@@ -196,11 +199,11 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
         auto pick = [&](__m128 value, __m128 otherwise) {
           return _mm_or_ps(_mm_and_ps(valid, value), _mm_andnot_ps(valid, otherwise));
         };
-        min_tan_x = _mm_min_ps(min_tan_x, pick(tan_x, huge));
-        max_tan_x = _mm_max_ps(max_tan_x, pick(tan_x, _mm_sub_ps(zero, huge)));
-        min_tan_y = _mm_min_ps(min_tan_y, pick(tan_y, huge));
-        max_tan_y = _mm_max_ps(max_tan_y, pick(tan_y, _mm_sub_ps(zero, huge)));
-        min_z = _mm_min_ps(min_z, pick(z, huge));
+        row_min_tan_x = _mm_min_ps(row_min_tan_x, pick(tan_x, huge));
+        row_max_tan_x = _mm_max_ps(row_max_tan_x, pick(tan_x, _mm_sub_ps(zero, huge)));
+        row_min_tan_y = _mm_min_ps(row_min_tan_y, pick(tan_y, huge));
+        row_max_tan_y = _mm_max_ps(row_max_tan_y, pick(tan_y, _mm_sub_ps(zero, huge)));
+        row_min_z = _mm_min_ps(row_min_z, pick(z, huge));
       }
       __m128 kept = finite;
       if (limit_range) {
@@ -254,15 +257,32 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
         return _mm_add_epi32(truncated,
                              _mm_castps_si128(_mm_cmplt_ps(value, _mm_cvtepi32_ps(truncated))));
       };
-      alignas(16) int32_t cx[4], cy[4], cz[4];
-      _mm_store_si128(reinterpret_cast<__m128i*>(cx), floorOf(vx));
-      _mm_store_si128(reinterpret_cast<__m128i*>(cy), floorOf(vy));
-      _mm_store_si128(reinterpret_cast<__m128i*>(cz), floorOf(vz));
-      for (int lane = 0; lane < 4; ++lane) {
-        keys[u + lane] = kept_lanes >> lane & 1 ? voxel_key::pack(cx[lane], cy[lane], cz[lane])
-                                                : voxel_key::kEmpty;
-      }
+      // voxel_key::pack of the kept lanes (coordinates made >= 0, shifted into 64 bits), kEmpty
+      // (all bits set) for the others.
+      const __m128i offset = _mm_set1_epi32(static_cast<int32_t>(voxel_key::kAxisOffset)),
+                    lane_bits = _mm_setr_epi32(1, 2, 4, 8), none = _mm_setzero_si128();
+      const __m128i cx = _mm_add_epi32(floorOf(vx), offset),
+                    cy = _mm_add_epi32(floorOf(vy), offset),
+                    cz = _mm_add_epi32(floorOf(vz), offset);
+      const __m128i kept_mask =
+          _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(kept_lanes), lane_bits), lane_bits);
+      auto packed = [&](__m128i x2, __m128i y2, __m128i z2, __m128i kept2) {  // two 64-bit lanes
+        const __m128i key = _mm_or_si128(_mm_or_si128(_mm_slli_epi64(x2, 2 * voxel_key::kAxisBits),
+                                                      _mm_slli_epi64(y2, voxel_key::kAxisBits)),
+                                         z2);
+        return _mm_or_si128(key, _mm_xor_si128(kept2, _mm_set1_epi32(-1)));
+      };
+      _mm_storeu_si128(
+          reinterpret_cast<__m128i*>(keys + u),
+          packed(_mm_unpacklo_epi32(cx, none), _mm_unpacklo_epi32(cy, none),
+                 _mm_unpacklo_epi32(cz, none), _mm_unpacklo_epi32(kept_mask, kept_mask)));
+      _mm_storeu_si128(
+          reinterpret_cast<__m128i*>(keys + u + 2),
+          packed(_mm_unpackhi_epi32(cx, none), _mm_unpackhi_epi32(cy, none),
+                 _mm_unpackhi_epi32(cz, none), _mm_unpackhi_epi32(kept_mask, kept_mask)));
     }
+    min_tan_x = row_min_tan_x, max_tan_x = row_max_tan_x, min_tan_y = row_min_tan_y;
+    max_tan_y = row_max_tan_y, min_z = row_min_z;
 #endif
     // The rest one by one (with the view: a column added again or later keeps first and last).
     for (; u < width; ++u) keys[u] = keyPixel(row, u, v);
@@ -357,7 +377,6 @@ void Preprocessor::releaseOversizedBuffers(size_t input_points) {
 template <typename PointT>
 void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view) {
   out.header = in.header;
-  out.points.clear();
   out.width = 0;
   out.height = 1;
   out.is_dense = true;
@@ -391,6 +410,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   if (view) *view = gather_view ? view_.bounds() : ViewBounds();
 
   if (params_.leaf_size <= 0.0f) {  // no voxel grid: the valid points within range
+    out.points.clear();
     out.points.reserve(in.points.size());
     for (size_t i = 0; i < in.points.size(); ++i) {
       const PointT& p = in.points[i];
@@ -408,6 +428,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   sumVoxels(in, width, height);
   // The centroids, in parts on all cores.
   const std::vector<VoxelSum>& sums = table_.sums;
+  // The points a reused cloud held are overwritten, not zeroed first.
   out.points.resize(sums.size());
   const size_t parts = std::min<size_t>(static_cast<size_t>(bands), sums.size());
   parallelFor(
