@@ -18,7 +18,6 @@
 #include <numeric>
 #include <set>
 #include <unordered_map>
-#include <unordered_set>
 
 namespace tabletop_shapes {
 namespace {
@@ -403,6 +402,7 @@ struct FootprintCell {
   float height;     // of its highest point above the table
   float low;        // of its lowest point
   int region = -1;  // cells joined by kTopFaceStep steps; -1 in a steep cell
+  int id = -1;      // 0, 1, ... in the order the cells were first met: an index for flat arrays
   // A vertical face (or an edge) projects onto the cell: it joins no top face, or the faces of
   // a box behind a lower one would chain both tops into one region.
   bool steep() const { return height - low > kTopFaceStep; }
@@ -775,18 +775,32 @@ size_t levelCellsWithin(const std::vector<Eigen::Vector2f>& outline, float botto
 // inside of a cup or bowl seen within its rim).
 std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& heights,
                               const std::vector<Eigen::Vector2f>& footprints,
-                              std::vector<uint64_t>& cell_of_point,
                               std::unordered_map<uint64_t, FootprintCell>& cells) {
+  // Each point's cell (the map's elements stay where they are), and the points of each cell in
+  // ascending order as one flat array (cell id -> range): one hash lookup per point in all.
+  std::vector<FootprintCell*> cell_of_point(cluster.size());
   for (size_t i = 0; i < cluster.size(); ++i) {
     const Eigen::Vector2f q = footprints[i] / kFootprintCell;
     const int64_t x = voxel_key::floorToInt(q.x()), y = voxel_key::floorToInt(q.y());
-    const uint64_t key = voxel_key::pack(x, y, 0);
-    cell_of_point[i] = key;
-    auto [it, added] = cells.try_emplace(key, FootprintCell{x, y, heights[i], heights[i]});
-    if (!added) {
-      it->second.height = std::max(it->second.height, heights[i]);
-      it->second.low = std::min(it->second.low, heights[i]);
+    auto [it, added] =
+        cells.try_emplace(voxel_key::pack(x, y, 0), FootprintCell{x, y, heights[i], heights[i]});
+    FootprintCell& cell = it->second;
+    if (added) {
+      cell.id = static_cast<int>(cells.size()) - 1;
+    } else {
+      cell.height = std::max(cell.height, heights[i]);
+      cell.low = std::min(cell.low, heights[i]);
     }
+    cell_of_point[i] = &cell;
+  }
+  std::vector<int> first_point_of_cell(cells.size() + 1, 0), points_by_cell(cluster.size());
+  for (const FootprintCell* cell : cell_of_point) ++first_point_of_cell[cell->id + 1];
+  std::partial_sum(first_point_of_cell.begin(), first_point_of_cell.end(),
+                   first_point_of_cell.begin());
+  {
+    std::vector<int> next = first_point_of_cell;
+    for (size_t i = 0; i < cluster.size(); ++i)
+      points_by_cell[next[cell_of_point[i]->id]++] = static_cast<int>(i);
   }
   // Regions: flood fill over the 8 neighbours within kTopFaceStep, steep cells left out. A steep
   // cell whose highest point lies at the level of the cell beside it is a noisy cell of the same
@@ -833,26 +847,27 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   };
   // The points at a region's level: those of its cells and of the steep cells around them (its
   // edges), from a step under its lowest cell to half a step over its highest.
-  std::unordered_map<uint64_t, std::vector<int>> points_of_cell;
-  for (size_t i = 0; i < cluster.size(); ++i) points_of_cell[cell_of_point[i]].push_back(i);
-  std::unordered_set<uint64_t> visited;
+  std::vector<int> taken_in_call(cells.size(), -1);  // per cell id: the last call that took it
+  int calls = 0;
   auto levelPoints = [&](const std::vector<const FootprintCell*>& region) {
     float low = std::numeric_limits<float>::infinity(), high = -low;
     for (const FootprintCell* cell : region)
       low = std::min(low, cell->height), high = std::max(high, cell->height);
     std::vector<Eigen::Vector2f> level;
-    visited.clear();
-    auto take = [&](uint64_t key) {
-      if (!visited.insert(key).second) return;
-      for (int i : points_of_cell[key]) {
+    const int call = calls++;
+    auto take = [&](const FootprintCell& cell) {
+      if (taken_in_call[cell.id] == call) return;
+      taken_in_call[cell.id] = call;
+      for (int k = first_point_of_cell[cell.id]; k < first_point_of_cell[cell.id + 1]; ++k) {
+        const int i = points_by_cell[k];
         if (heights[i] >= low - kTopFaceStep && heights[i] <= high + 0.5f * kTopFaceStep)
           level.push_back(footprints[i]);
       }
     };
     for (const FootprintCell* cell : region) {
-      take(voxel_key::pack(cell->x, cell->y, 0));
-      forNeighbourCells(*cell, [&](uint64_t key, const FootprintCell& next) {
-        if (next.steep()) take(key);
+      take(*cell);
+      forNeighbourCells(*cell, [&](uint64_t, const FootprintCell& next) {
+        if (next.steep()) take(next);
       });
     }
     return level;
@@ -933,19 +948,24 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   // Outlines: the points of a face's cells and of the steep cells around them (its edges) at
   // its height, within half a step.
   std::vector<std::vector<Eigen::Vector2f>> face_points(faces.size());
-  std::vector<int> near_faces;
+  // Per cell id: the faces its points may belong to, found at its first point.
+  std::vector<std::vector<int>> near_faces_of_cell(cells.size());
+  std::vector<char> near_faces_known(cells.size(), 0);
   for (size_t i = 0; i < cluster.size(); ++i) {
-    const FootprintCell& cell = cells.at(cell_of_point[i]);
-    near_faces.clear();
-    if (!cell.steep()) {
-      if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
-    } else {
-      // The cell itself is steep: in no region.
-      forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
-        if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
-      });
-      std::sort(near_faces.begin(), near_faces.end());
-      near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
+    const FootprintCell& cell = *cell_of_point[i];
+    std::vector<int>& near_faces = near_faces_of_cell[cell.id];
+    if (!near_faces_known[cell.id]) {
+      near_faces_known[cell.id] = 1;
+      if (!cell.steep()) {
+        if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
+      } else {
+        // The cell itself is steep: in no region.
+        forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
+          if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
+        });
+        std::sort(near_faces.begin(), near_faces.end());
+        near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
+      }
     }
     for (int f : near_faces) {
       if (f < 0) continue;
@@ -1050,9 +1070,8 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
     heights[i] = table.signedDistance(cloud[i].getVector3fMap());
     footprints[i] = onTable(cloud[i]);
   }
-  std::vector<uint64_t> cell_of_point(cloud.size());
   std::unordered_map<uint64_t, FootprintCell> cells;
-  std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cell_of_point, cells);
+  std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cells);
   joinFacesPartedByAKnob(faces, cells);
   std::vector<int> face_of;
   while (faces.size() >= 2) {
