@@ -12,6 +12,8 @@
 #include <pcl/segmentation/lccp_segmentation.h>
 #include <pcl/segmentation/supervoxel_clustering.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <limits>
 #include <map>
@@ -1194,6 +1196,7 @@ std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const
 // number >= 0) are neighbours a few millimetres apart, not halves of one top: nothing lies
 // across the gap (their joint outline may still reach over taller neighbours).
 constexpr int kMaxUncoveredGapCells = 2;
+constexpr float kSurelyOutside = 0.001f;  // [m]
 std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
                                                   std::vector<int> parted_by_a_gap,
                                                   const Cloud& surroundings, const Plane& table,
@@ -1211,6 +1214,12 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
     const float top = std::max(top_a, top_b);
     const PolygonEdges joint_edges(joint), edges_a(outline_a), edges_b(outline_b);
+    // The joint outline's bounding box, a millimetre wider: points beyond it lie outside the
+    // outline whatever the rounding of insideDistance, and most of the surroundings do.
+    Eigen::AlignedBox2f joint_box;
+    for (const Eigen::Vector2f& corner : joint) joint_box.extend(corner);
+    joint_box.extend(joint_box.min() - Eigen::Vector2f::Constant(kSurelyOutside));
+    joint_box.extend(joint_box.max() + Eigen::Vector2f::Constant(kSurelyOutside));
     // Per footprint cell of the gap: points over the tops and points lower, beyond kTopStep
     // (at their level lie strips of their own top that went with the object on it), counted +1
     // from the surroundings, -1 from the objects themselves.
@@ -1223,8 +1232,9 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
       for (const auto& p : cloud) {
         const float h = table.signedDistance(p.getVector3fMap());
         const Eigen::Vector2f q = onTable(p);
-        if (std::abs(h - top) <= kTopStep || joint_edges.insideDistance(q) < 0 ||
-            edges_a.insideDistance(q) >= -smear || edges_b.insideDistance(q) >= -smear)
+        if (std::abs(h - top) <= kTopStep || !joint_box.contains(q) ||
+            joint_edges.insideDistance(q) < 0 || edges_a.insideDistance(q) >= -smear ||
+            edges_b.insideDistance(q) >= -smear)
           continue;
         const Eigen::Vector2f c = q / kFootprintCell;
         GapCell& cell =
