@@ -50,6 +50,9 @@ constexpr float kMaxGap = 0.3f;
 // sight (twice the voxel grid's 5 mm at 1 m) and at least kOccluderInFront nearer the camera.
 constexpr float kSightAngle = 0.01f;       // [rad]
 constexpr float kOccluderInFront = 0.02f;  // [m]
+// Rounding room of the angle bounds that spare the search for an occluding point [rad]: the
+// float test of an angle of kSightAngle errs by ~1e-5.
+constexpr double kAngleSlack = 1e-3;
 
 // Clusters nearer than this touch [m]: the split (cluster_split.h) parted them at a concave
 // seam, as two objects side by side, and they are not joined again as the parts of an object
@@ -221,10 +224,47 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
     for (const auto& p : *clusters[c])
       top[c] = std::max(top[c], table.signedDistance(p.getVector3fMap()));
   }
+  // Each cluster's nearest range from the viewpoint and the cone of its lines of sight (axis:
+  // the sight to its centroid, half-angle: the widest to a point), made at the first sample it
+  // is asked about, so that the gap samples skip the clusters that cannot hide them without a
+  // look at their points.
+  struct SightCone {
+    bool made = false;
+    float nearest = std::numeric_limits<float>::max();
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+    double half_angle = 0.0;  // [rad]
+  };
+  std::vector<SightCone> cones(clusters.size());
+  auto coneOf = [&](size_t c) -> const SightCone& {
+    SightCone& cone = cones[c];
+    if (cone.made) return cone;
+    cone.made = true;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& p : *clusters[c]) {
+      const Eigen::Vector3f to = p.getVector3fMap() - viewpoint;
+      cone.nearest = std::min(cone.nearest, to.norm());
+      sum += to.cast<double>();
+    }
+    cone.axis = sum.normalized();
+    double least_cosine = 1.0;
+    for (const auto& p : *clusters[c]) {
+      const Eigen::Vector3d to = (p.getVector3fMap() - viewpoint).cast<double>();
+      least_cosine = std::min(least_cosine, to.dot(cone.axis) / to.norm());
+    }
+    cone.half_angle = std::acos(std::clamp(least_cosine, -1.0, 1.0));
+    return cone;
+  };
   // Is the point `sample` hidden from the viewpoint by cluster `occluder`?
   auto hiddenBy = [&](const Eigen::Vector3f& sample, size_t occluder) {
     const Eigen::Vector3f sight = sample - viewpoint;
     const float range = sight.norm();
+    const SightCone& cone = coneOf(occluder);
+    // No point near enough, or the sight's angle to every point exceeds kSightAngle (angles
+    // add up: to the axis <= to a point + the point's to the axis), with room for rounding.
+    if (!(cone.nearest < range - kOccluderInFront)) return false;
+    const double off_axis =
+        std::acos(std::clamp(sight.cast<double>().normalized().dot(cone.axis), -1.0, 1.0));
+    if (off_axis > cone.half_angle + kSightAngle + kAngleSlack) return false;
     const float min_cos = std::cos(kSightAngle);
     for (const auto& point : *clusters[occluder]) {
       const Eigen::Vector3f to = point.getVector3fMap() - viewpoint;
