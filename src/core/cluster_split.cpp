@@ -173,18 +173,41 @@ ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& pa
   return parts;
 }
 
-// Points of other parts among the k nearest neighbours of `part`'s points, per part.
-std::map<uint32_t, int> neighbourVotes(const Cloud& cluster, const pcl::search::Search<Point>& tree,
+// The kVoters nearest points of every point of a cluster (itself among them), found at once
+// (GridSearch::forEachNearestKIndices: the lists of one nearestKSearch per point): the merges
+// below count them again for every part at every round.
+constexpr int kVoters = 16;
+class NearestOfEach {
+ public:
+  explicit NearestOfEach(const CloudConstPtr& cluster)
+      : count_(cluster->size(), 0), nearest_(cluster->size() * kVoters) {
+    // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
+    GridSearch<Point> search(kVoteSearchCell, false);
+    search.setInputCloud(cluster);
+    search.forEachNearestKIndices(kVoters, [&](int i, const pcl::Indices& nearest) {
+      count_[i] = static_cast<int>(nearest.size());
+      std::copy(nearest.begin(), nearest.end(), nearest_.begin() + i * kVoters);
+    });
+  }
+  template <typename Visit>
+  void forEachOf(size_t i, Visit&& visit) const {
+    for (int k = 0; k < count_[i]; ++k) visit(nearest_[i * kVoters + k]);
+  }
+
+ private:
+  std::vector<int> count_;    // per point: how many it has (fewer only in a tiny cluster)
+  std::vector<int> nearest_;  // kVoters slots per point
+};
+
+// Points of other parts among the kVoters nearest neighbours of `part`'s points, per part.
+std::map<uint32_t, int> neighbourVotes(const NearestOfEach& nearest,
                                        const std::vector<uint32_t>& labels, uint32_t part) {
   std::map<uint32_t, int> votes;
-  std::vector<int> neighbours;
-  std::vector<float> distances;
   for (size_t i = 0; i < labels.size(); ++i) {
     if (labels[i] != part) continue;
-    tree.nearestKSearch(cluster[i], 16, neighbours, distances);
-    for (int j : neighbours) {
+    nearest.forEachOf(i, [&](int j) {
       if (labels[j] != part && labels[j] != 0) ++votes[labels[j]];
-    }
+    });
   }
   return votes;
 }
@@ -229,8 +252,7 @@ uint32_t bestNeighbour(const std::map<uint32_t, int>& votes, const std::vector<S
 // bestNeighbour, smallest first: across a concave seam only when they touch nothing else (a
 // handle). A thin strip of a lower box's top face around a box standing on it touches the
 // upper box most, but meets it at the concave seam.
-void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tree, int min_points,
-                     ConvexParts& parts) {
+void mergeSmallParts(const NearestOfEach& nearest, int min_points, ConvexParts& parts) {
   std::vector<uint32_t>& labels = parts.labels;
   for (;;) {
     std::map<uint32_t, int> size;
@@ -244,7 +266,7 @@ void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tre
       if (size[smallest] >= min_points) return;
     }
     uint32_t target =
-        bestNeighbour(neighbourVotes(cluster, tree, labels, smallest), parts.seams, smallest);
+        bestNeighbour(neighbourVotes(nearest, labels, smallest), parts.seams, smallest);
     if (target == 0) {  // touches no other part: join the largest
       for (const auto& [label, n] : size) {
         if (label != smallest && label != 0 && (target == 0 || n > size[target])) target = label;
@@ -319,8 +341,8 @@ bool hasFlatTop(const Cloud& cluster, const std::vector<uint32_t>& labels, uint3
 // unless side by side: then the gap is the depth jump from one object's top edge to the one
 // behind it. (Touching objects whose tops lie within kTopStep of each other, or meet without
 // a concave seam, stay one cluster.)
-void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point>& tree,
-                           const Plane& table, float smear, ConvexParts& parts) {
+void mergeUnseparatedParts(const Cloud& cluster, const NearestOfEach& nearest, const Plane& table,
+                           float smear, ConvexParts& parts) {
   const TableProjection onTable(table);
   std::vector<uint32_t>& labels = parts.labels;
   auto sideBySide = [&](uint32_t a, float a_top, uint32_t b, float b_top) {
@@ -351,7 +373,7 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
              hasFlatTop(cluster, labels, lower, top[lower], table, onTable);
     };
     for (const auto& [part, part_top] : top) {
-      for (const auto& [other, n] : neighbourVotes(cluster, tree, labels, part)) {
+      for (const auto& [other, n] : neighbourVotes(nearest, labels, part)) {
         const bool same_top = std::abs(top[other] - part_top) <= kStackStep;
         if ((same_top || (seamRank(parts.seams, part, other) == 1 && !restsOnTop(part, other))) &&
             !sideBySide(part, part_top, other, top[other])) {
@@ -1138,12 +1160,10 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
   ConvexParts convex_parts = convexParts(cluster, params);
-  // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
-  GridSearch<Point> tree(kVoteSearchCell, false);
-  tree.setInputCloud(cluster);
-  mergeSmallParts(*cluster, tree, min_points, convex_parts);
-  mergeUnseparatedParts(*cluster, tree, table, sidewaysSmear(centroidOf(*cluster).norm(), params),
-                        convex_parts);
+  const NearestOfEach nearest(cluster);
+  mergeSmallParts(nearest, min_points, convex_parts);
+  mergeUnseparatedParts(*cluster, nearest, table,
+                        sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
   for (size_t i = 0; i < convex_parts.labels.size(); ++i)
