@@ -32,6 +32,8 @@ constexpr float kOpeningInset = 0.005f;
 // covers only the near half of the opening, so the far inside wall's lines of sight cross the
 // rim's height beyond it: on OSD's bowls 20 % pass; beside solid objects under 1 %.
 constexpr float kMinSeenThroughFraction = 0.1f;
+// Room for the float rounding of the crossings in the bound that spares their computation [m].
+constexpr float kCrossingRounding = 0.001f;
 
 // Parts of one object hidden in the middle: their tops lie within this of each other [m] (the
 // top face or rim of one solid, seen on both sides of the occluder; a stacked object rises
@@ -152,18 +154,45 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   std::vector<Footprint> footprints(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) footprints[c] = footprintOf({c});
 
+  // Each cluster's footprint's bounding box and lowest point, for the bound below.
+  const Eigen::Vector2f eye_on_table(u.dot(viewpoint), v.dot(viewpoint));
+  std::vector<Eigen::AlignedBox2f> boxes(clusters.size());
+  std::vector<float> bottoms(clusters.size(), std::numeric_limits<float>::max());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    for (const auto& point : *clusters[c]) {
+      const Eigen::Vector3f p = point.getVector3fMap();
+      boxes[c].extend(Eigen::Vector2f(u.dot(p), v.dot(p)));
+      bottoms[c] = std::min(bottoms[c], table.signedDistance(p));
+    }
+  }
   // Is cluster `inside` seen through the opening whose rim is `rim`? `reaching_rim`: its top must
   // also come within kRimStep of the rim (else it only must not rise above it).
   auto seenThroughOpening = [&](size_t inside, const Footprint& rim, bool reaching_rim) {
     const float rise = footprints[inside].top - rim.top;
     if (rim.hull.size() < 3 || rise > kRimStep || (reaching_rim && rise < -kRimStep) ||
-        !(eye_height > rim.top)) {
+        !(eye_height > rim.top) || clusters[inside]->empty()) {
       return false;
     }
     // A point of a convex polygon within the inset of its bounding box's side is within the
     // inset of its boundary: the box test spares the exact distance to most crossings.
     const Eigen::Vector2f shrink = Eigen::Vector2f::Constant(kOpeningInset - kSurelyShallower);
     const Eigen::AlignedBox2f deep_enough(rim.box.min() + shrink, rim.box.max() - shrink);
+    // A crossing's footprint is the eye's moved toward the point's by the share s = (eye - rim)
+    // / (eye - point) of the way (heights), s growing with the point's height: every crossing
+    // lies in the box of the footprint box's corners moved by the least and the largest share.
+    // When that box (a millimetre wider, for rounding) misses the opening, none passes.
+    const float lowest = std::min(bottoms[inside], rim.top - kBelowRim);
+    Eigen::AlignedBox2f crossings;
+    for (const float share : {(eye_height - rim.top) / (eye_height - lowest),
+                              (eye_height - rim.top) / (eye_height - (rim.top - kBelowRim))}) {
+      for (const auto corner : {Eigen::AlignedBox2f::BottomLeft, Eigen::AlignedBox2f::BottomRight,
+                                Eigen::AlignedBox2f::TopLeft, Eigen::AlignedBox2f::TopRight}) {
+        crossings.extend(eye_on_table + (boxes[inside].corner(corner) - eye_on_table) * share);
+      }
+    }
+    crossings.extend(crossings.min() - Eigen::Vector2f::Constant(kCrossingRounding));
+    crossings.extend(crossings.max() + Eigen::Vector2f::Constant(kCrossingRounding));
+    if (!crossings.intersects(deep_enough)) return false;
     size_t through = 0;
     for (const auto& point : *clusters[inside]) {
       const Eigen::Vector3f p = point.getVector3fMap();
