@@ -6,6 +6,7 @@
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_neighbours.h"
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/top_step_split.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
@@ -184,10 +185,15 @@ class NearestOfEach {
     // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
     GridSearch<Point> search(kVoteSearchCell, false);
     search.setInputCloud(cluster);
-    search.forEachNearestKIndices(kVoters, [&](int i, const pcl::Indices& nearest) {
-      count_[i] = static_cast<int>(nearest.size());
-      std::copy(nearest.begin(), nearest.end(), nearest_.begin() + i * kVoters);
-    });
+    // Each point's slots are its own: the threads write different ones. A single cluster to
+    // split (one pile on the table) gets every core.
+    search.forEachNearestKIndices(
+        kVoters,
+        [&](int i, const pcl::Indices& nearest) {
+          count_[i] = static_cast<int>(nearest.size());
+          std::copy(nearest.begin(), nearest.end(), nearest_.begin() + i * kVoters);
+        },
+        freeWorkerThreads());
   }
   template <typename Visit>
   void forEachOf(size_t i, Visit&& visit) const {
