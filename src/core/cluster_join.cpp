@@ -32,6 +32,8 @@ constexpr float kOpeningInset = 0.005f;
 // covers only the near half of the opening, so the far inside wall's lines of sight cross the
 // rim's height beyond it: on OSD's bowls 20 % pass; beside solid objects under 1 %.
 constexpr float kMinSeenThroughFraction = 0.1f;
+// Room for the float rounding of the crossings in the bound that spares their computation [m].
+constexpr float kCrossingRounding = 0.001f;
 
 // Parts of one object hidden in the middle: their tops lie within this of each other [m] (the
 // top face or rim of one solid, seen on both sides of the occluder; a stacked object rises
@@ -50,6 +52,9 @@ constexpr float kMaxGap = 0.3f;
 // sight (twice the voxel grid's 5 mm at 1 m) and at least kOccluderInFront nearer the camera.
 constexpr float kSightAngle = 0.01f;       // [rad]
 constexpr float kOccluderInFront = 0.02f;  // [m]
+// Rounding room of the angle bounds that spare the search for an occluding point [rad]: the
+// float test of an angle of kSightAngle errs by ~1e-5.
+constexpr double kAngleSlack = 1e-3;
 
 // Clusters nearer than this touch [m]: the split (cluster_split.h) parted them at a concave
 // seam, as two objects side by side, and they are not joined again as the parts of an object
@@ -149,18 +154,45 @@ std::vector<CloudPtr> joinInsidesSeenOverRims(std::vector<CloudPtr> clusters, co
   std::vector<Footprint> footprints(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) footprints[c] = footprintOf({c});
 
+  // Each cluster's footprint's bounding box and lowest point, for the bound below.
+  const Eigen::Vector2f eye_on_table(u.dot(viewpoint), v.dot(viewpoint));
+  std::vector<Eigen::AlignedBox2f> boxes(clusters.size());
+  std::vector<float> bottoms(clusters.size(), std::numeric_limits<float>::max());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    for (const auto& point : *clusters[c]) {
+      const Eigen::Vector3f p = point.getVector3fMap();
+      boxes[c].extend(Eigen::Vector2f(u.dot(p), v.dot(p)));
+      bottoms[c] = std::min(bottoms[c], table.signedDistance(p));
+    }
+  }
   // Is cluster `inside` seen through the opening whose rim is `rim`? `reaching_rim`: its top must
   // also come within kRimStep of the rim (else it only must not rise above it).
   auto seenThroughOpening = [&](size_t inside, const Footprint& rim, bool reaching_rim) {
     const float rise = footprints[inside].top - rim.top;
     if (rim.hull.size() < 3 || rise > kRimStep || (reaching_rim && rise < -kRimStep) ||
-        !(eye_height > rim.top)) {
+        !(eye_height > rim.top) || clusters[inside]->empty()) {
       return false;
     }
     // A point of a convex polygon within the inset of its bounding box's side is within the
     // inset of its boundary: the box test spares the exact distance to most crossings.
     const Eigen::Vector2f shrink = Eigen::Vector2f::Constant(kOpeningInset - kSurelyShallower);
     const Eigen::AlignedBox2f deep_enough(rim.box.min() + shrink, rim.box.max() - shrink);
+    // A crossing's footprint is the eye's moved toward the point's by the share s = (eye - rim)
+    // / (eye - point) of the way (heights), s growing with the point's height: every crossing
+    // lies in the box of the footprint box's corners moved by the least and the largest share.
+    // When that box (a millimetre wider, for rounding) misses the opening, none passes.
+    const float lowest = std::min(bottoms[inside], rim.top - kBelowRim);
+    Eigen::AlignedBox2f crossings;
+    for (const float share : {(eye_height - rim.top) / (eye_height - lowest),
+                              (eye_height - rim.top) / (eye_height - (rim.top - kBelowRim))}) {
+      for (const auto corner : {Eigen::AlignedBox2f::BottomLeft, Eigen::AlignedBox2f::BottomRight,
+                                Eigen::AlignedBox2f::TopLeft, Eigen::AlignedBox2f::TopRight}) {
+        crossings.extend(eye_on_table + (boxes[inside].corner(corner) - eye_on_table) * share);
+      }
+    }
+    crossings.extend(crossings.min() - Eigen::Vector2f::Constant(kCrossingRounding));
+    crossings.extend(crossings.max() + Eigen::Vector2f::Constant(kCrossingRounding));
+    if (!crossings.intersects(deep_enough)) return false;
     size_t through = 0;
     for (const auto& point : *clusters[inside]) {
       const Eigen::Vector3f p = point.getVector3fMap();
@@ -221,10 +253,47 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
     for (const auto& p : *clusters[c])
       top[c] = std::max(top[c], table.signedDistance(p.getVector3fMap()));
   }
+  // Each cluster's nearest range from the viewpoint and the cone of its lines of sight (axis:
+  // the sight to its centroid, half-angle: the widest to a point), made at the first sample it
+  // is asked about, so that the gap samples skip the clusters that cannot hide them without a
+  // look at their points.
+  struct SightCone {
+    bool made = false;
+    float nearest = std::numeric_limits<float>::max();
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+    double half_angle = 0.0;  // [rad]
+  };
+  std::vector<SightCone> cones(clusters.size());
+  auto coneOf = [&](size_t c) -> const SightCone& {
+    SightCone& cone = cones[c];
+    if (cone.made) return cone;
+    cone.made = true;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& p : *clusters[c]) {
+      const Eigen::Vector3f to = p.getVector3fMap() - viewpoint;
+      cone.nearest = std::min(cone.nearest, to.norm());
+      sum += to.cast<double>();
+    }
+    cone.axis = sum.normalized();
+    double least_cosine = 1.0;
+    for (const auto& p : *clusters[c]) {
+      const Eigen::Vector3d to = (p.getVector3fMap() - viewpoint).cast<double>();
+      least_cosine = std::min(least_cosine, to.dot(cone.axis) / to.norm());
+    }
+    cone.half_angle = std::acos(std::clamp(least_cosine, -1.0, 1.0));
+    return cone;
+  };
   // Is the point `sample` hidden from the viewpoint by cluster `occluder`?
   auto hiddenBy = [&](const Eigen::Vector3f& sample, size_t occluder) {
     const Eigen::Vector3f sight = sample - viewpoint;
     const float range = sight.norm();
+    const SightCone& cone = coneOf(occluder);
+    // No point near enough, or the sight's angle to every point exceeds kSightAngle (angles
+    // add up: to the axis <= to a point + the point's to the axis), with room for rounding.
+    if (!(cone.nearest < range - kOccluderInFront)) return false;
+    const double off_axis =
+        std::acos(std::clamp(sight.cast<double>().normalized().dot(cone.axis), -1.0, 1.0));
+    if (off_axis > cone.half_angle + kSightAngle + kAngleSlack) return false;
     const float min_cos = std::cos(kSightAngle);
     for (const auto& point : *clusters[occluder]) {
       const Eigen::Vector3f to = point.getVector3fMap() - viewpoint;

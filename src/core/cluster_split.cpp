@@ -6,11 +6,14 @@
 #include "tabletop_shapes/core/convex_polygon.h"
 #include "tabletop_shapes/core/grid_neighbours.h"
 #include "tabletop_shapes/core/grid_search.h"
+#include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/top_step_split.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
 #include <pcl/segmentation/lccp_segmentation.h>
 #include <pcl/segmentation/supervoxel_clustering.h>
+
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <limits>
@@ -18,7 +21,6 @@
 #include <numeric>
 #include <set>
 #include <unordered_map>
-#include <unordered_set>
 
 namespace tabletop_shapes {
 namespace {
@@ -172,18 +174,46 @@ ConvexParts convexParts(const CloudConstPtr& cluster, const ClusteringParams& pa
   return parts;
 }
 
-// Points of other parts among the k nearest neighbours of `part`'s points, per part.
-std::map<uint32_t, int> neighbourVotes(const Cloud& cluster, const pcl::search::Search<Point>& tree,
+// The kVoters nearest points of every point of a cluster (itself among them), found at once
+// (GridSearch::forEachNearestKIndices: the lists of one nearestKSearch per point): the merges
+// below count them again for every part at every round.
+constexpr int kVoters = 16;
+class NearestOfEach {
+ public:
+  explicit NearestOfEach(const CloudConstPtr& cluster)
+      : count_(cluster->size(), 0), nearest_(cluster->size() * kVoters) {
+    // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
+    GridSearch<Point> search(kVoteSearchCell, false);
+    search.setInputCloud(cluster);
+    // Each point's slots are its own: the threads write different ones. A single cluster to
+    // split (one pile on the table) gets every core.
+    search.forEachNearestKIndices(
+        kVoters,
+        [&](int i, const pcl::Indices& nearest) {
+          count_[i] = static_cast<int>(nearest.size());
+          std::copy(nearest.begin(), nearest.end(), nearest_.begin() + i * kVoters);
+        },
+        freeWorkerThreads());
+  }
+  template <typename Visit>
+  void forEachOf(size_t i, Visit&& visit) const {
+    for (int k = 0; k < count_[i]; ++k) visit(nearest_[i * kVoters + k]);
+  }
+
+ private:
+  std::vector<int> count_;    // per point: how many it has (fewer only in a tiny cluster)
+  std::vector<int> nearest_;  // kVoters slots per point
+};
+
+// Points of other parts among the kVoters nearest neighbours of `part`'s points, per part.
+std::map<uint32_t, int> neighbourVotes(const NearestOfEach& nearest,
                                        const std::vector<uint32_t>& labels, uint32_t part) {
   std::map<uint32_t, int> votes;
-  std::vector<int> neighbours;
-  std::vector<float> distances;
   for (size_t i = 0; i < labels.size(); ++i) {
     if (labels[i] != part) continue;
-    tree.nearestKSearch(cluster[i], 16, neighbours, distances);
-    for (int j : neighbours) {
+    nearest.forEachOf(i, [&](int j) {
       if (labels[j] != part && labels[j] != 0) ++votes[labels[j]];
-    }
+    });
   }
   return votes;
 }
@@ -228,8 +258,7 @@ uint32_t bestNeighbour(const std::map<uint32_t, int>& votes, const std::vector<S
 // bestNeighbour, smallest first: across a concave seam only when they touch nothing else (a
 // handle). A thin strip of a lower box's top face around a box standing on it touches the
 // upper box most, but meets it at the concave seam.
-void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tree, int min_points,
-                     ConvexParts& parts) {
+void mergeSmallParts(const NearestOfEach& nearest, int min_points, ConvexParts& parts) {
   std::vector<uint32_t>& labels = parts.labels;
   for (;;) {
     std::map<uint32_t, int> size;
@@ -243,7 +272,7 @@ void mergeSmallParts(const Cloud& cluster, const pcl::search::Search<Point>& tre
       if (size[smallest] >= min_points) return;
     }
     uint32_t target =
-        bestNeighbour(neighbourVotes(cluster, tree, labels, smallest), parts.seams, smallest);
+        bestNeighbour(neighbourVotes(nearest, labels, smallest), parts.seams, smallest);
     if (target == 0) {  // touches no other part: join the largest
       for (const auto& [label, n] : size) {
         if (label != smallest && label != 0 && (target == 0 || n > size[target])) target = label;
@@ -318,8 +347,8 @@ bool hasFlatTop(const Cloud& cluster, const std::vector<uint32_t>& labels, uint3
 // unless side by side: then the gap is the depth jump from one object's top edge to the one
 // behind it. (Touching objects whose tops lie within kTopStep of each other, or meet without
 // a concave seam, stay one cluster.)
-void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point>& tree,
-                           const Plane& table, float smear, ConvexParts& parts) {
+void mergeUnseparatedParts(const Cloud& cluster, const NearestOfEach& nearest, const Plane& table,
+                           float smear, ConvexParts& parts) {
   const TableProjection onTable(table);
   std::vector<uint32_t>& labels = parts.labels;
   auto sideBySide = [&](uint32_t a, float a_top, uint32_t b, float b_top) {
@@ -350,7 +379,7 @@ void mergeUnseparatedParts(const Cloud& cluster, const pcl::search::Search<Point
              hasFlatTop(cluster, labels, lower, top[lower], table, onTable);
     };
     for (const auto& [part, part_top] : top) {
-      for (const auto& [other, n] : neighbourVotes(cluster, tree, labels, part)) {
+      for (const auto& [other, n] : neighbourVotes(nearest, labels, part)) {
         const bool same_top = std::abs(top[other] - part_top) <= kStackStep;
         if ((same_top || (seamRank(parts.seams, part, other) == 1 && !restsOnTop(part, other))) &&
             !sideBySide(part, part_top, other, top[other])) {
@@ -403,6 +432,7 @@ struct FootprintCell {
   float height;     // of its highest point above the table
   float low;        // of its lowest point
   int region = -1;  // cells joined by kTopFaceStep steps; -1 in a steep cell
+  int id = -1;      // 0, 1, ... in the order the cells were first met: an index for flat arrays
   // A vertical face (or an edge) projects onto the cell: it joins no top face, or the faces of
   // a box behind a lower one would chain both tops into one region.
   bool steep() const { return height - low > kTopFaceStep; }
@@ -775,18 +805,32 @@ size_t levelCellsWithin(const std::vector<Eigen::Vector2f>& outline, float botto
 // inside of a cup or bowl seen within its rim).
 std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& heights,
                               const std::vector<Eigen::Vector2f>& footprints,
-                              std::vector<uint64_t>& cell_of_point,
                               std::unordered_map<uint64_t, FootprintCell>& cells) {
+  // Each point's cell (the map's elements stay where they are), and the points of each cell in
+  // ascending order as one flat array (cell id -> range): one hash lookup per point in all.
+  std::vector<FootprintCell*> cell_of_point(cluster.size());
   for (size_t i = 0; i < cluster.size(); ++i) {
     const Eigen::Vector2f q = footprints[i] / kFootprintCell;
     const int64_t x = voxel_key::floorToInt(q.x()), y = voxel_key::floorToInt(q.y());
-    const uint64_t key = voxel_key::pack(x, y, 0);
-    cell_of_point[i] = key;
-    auto [it, added] = cells.try_emplace(key, FootprintCell{x, y, heights[i], heights[i]});
-    if (!added) {
-      it->second.height = std::max(it->second.height, heights[i]);
-      it->second.low = std::min(it->second.low, heights[i]);
+    auto [it, added] =
+        cells.try_emplace(voxel_key::pack(x, y, 0), FootprintCell{x, y, heights[i], heights[i]});
+    FootprintCell& cell = it->second;
+    if (added) {
+      cell.id = static_cast<int>(cells.size()) - 1;
+    } else {
+      cell.height = std::max(cell.height, heights[i]);
+      cell.low = std::min(cell.low, heights[i]);
     }
+    cell_of_point[i] = &cell;
+  }
+  std::vector<int> first_point_of_cell(cells.size() + 1, 0), points_by_cell(cluster.size());
+  for (const FootprintCell* cell : cell_of_point) ++first_point_of_cell[cell->id + 1];
+  std::partial_sum(first_point_of_cell.begin(), first_point_of_cell.end(),
+                   first_point_of_cell.begin());
+  {
+    std::vector<int> next = first_point_of_cell;
+    for (size_t i = 0; i < cluster.size(); ++i)
+      points_by_cell[next[cell_of_point[i]->id]++] = static_cast<int>(i);
   }
   // Regions: flood fill over the 8 neighbours within kTopFaceStep, steep cells left out. A steep
   // cell whose highest point lies at the level of the cell beside it is a noisy cell of the same
@@ -833,26 +877,27 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   };
   // The points at a region's level: those of its cells and of the steep cells around them (its
   // edges), from a step under its lowest cell to half a step over its highest.
-  std::unordered_map<uint64_t, std::vector<int>> points_of_cell;
-  for (size_t i = 0; i < cluster.size(); ++i) points_of_cell[cell_of_point[i]].push_back(i);
-  std::unordered_set<uint64_t> visited;
+  std::vector<int> taken_in_call(cells.size(), -1);  // per cell id: the last call that took it
+  int calls = 0;
   auto levelPoints = [&](const std::vector<const FootprintCell*>& region) {
     float low = std::numeric_limits<float>::infinity(), high = -low;
     for (const FootprintCell* cell : region)
       low = std::min(low, cell->height), high = std::max(high, cell->height);
     std::vector<Eigen::Vector2f> level;
-    visited.clear();
-    auto take = [&](uint64_t key) {
-      if (!visited.insert(key).second) return;
-      for (int i : points_of_cell[key]) {
+    const int call = calls++;
+    auto take = [&](const FootprintCell& cell) {
+      if (taken_in_call[cell.id] == call) return;
+      taken_in_call[cell.id] = call;
+      for (int k = first_point_of_cell[cell.id]; k < first_point_of_cell[cell.id + 1]; ++k) {
+        const int i = points_by_cell[k];
         if (heights[i] >= low - kTopFaceStep && heights[i] <= high + 0.5f * kTopFaceStep)
           level.push_back(footprints[i]);
       }
     };
     for (const FootprintCell* cell : region) {
-      take(voxel_key::pack(cell->x, cell->y, 0));
-      forNeighbourCells(*cell, [&](uint64_t key, const FootprintCell& next) {
-        if (next.steep()) take(key);
+      take(*cell);
+      forNeighbourCells(*cell, [&](uint64_t, const FootprintCell& next) {
+        if (next.steep()) take(next);
       });
     }
     return level;
@@ -933,19 +978,24 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
   // Outlines: the points of a face's cells and of the steep cells around them (its edges) at
   // its height, within half a step.
   std::vector<std::vector<Eigen::Vector2f>> face_points(faces.size());
-  std::vector<int> near_faces;
+  // Per cell id: the faces its points may belong to, found at its first point.
+  std::vector<std::vector<int>> near_faces_of_cell(cells.size());
+  std::vector<char> near_faces_known(cells.size(), 0);
   for (size_t i = 0; i < cluster.size(); ++i) {
-    const FootprintCell& cell = cells.at(cell_of_point[i]);
-    near_faces.clear();
-    if (!cell.steep()) {
-      if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
-    } else {
-      // The cell itself is steep: in no region.
-      forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
-        if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
-      });
-      std::sort(near_faces.begin(), near_faces.end());
-      near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
+    const FootprintCell& cell = *cell_of_point[i];
+    std::vector<int>& near_faces = near_faces_of_cell[cell.id];
+    if (!near_faces_known[cell.id]) {
+      near_faces_known[cell.id] = 1;
+      if (!cell.steep()) {
+        if (cell.region >= 0) near_faces.push_back(face_of_region[cell.region]);
+      } else {
+        // The cell itself is steep: in no region.
+        forGridNeighbours(cells, cell.x, cell.y, [&](uint64_t, const FootprintCell& next) {
+          if (next.region >= 0) near_faces.push_back(face_of_region[next.region]);
+        });
+        std::sort(near_faces.begin(), near_faces.end());
+        near_faces.erase(std::unique(near_faces.begin(), near_faces.end()), near_faces.end());
+      }
     }
     for (int f : near_faces) {
       if (f < 0) continue;
@@ -1050,9 +1100,8 @@ std::vector<CloudPtr> splitUnderTopFaces(const CloudPtr& part, const Plane& tabl
     heights[i] = table.signedDistance(cloud[i].getVector3fMap());
     footprints[i] = onTable(cloud[i]);
   }
-  std::vector<uint64_t> cell_of_point(cloud.size());
   std::unordered_map<uint64_t, FootprintCell> cells;
-  std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cell_of_point, cells);
+  std::vector<TopFace> faces = topFaces(cloud, heights, footprints, cells);
   joinFacesPartedByAKnob(faces, cells);
   std::vector<int> face_of;
   while (faces.size() >= 2) {
@@ -1117,12 +1166,10 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
   ConvexParts convex_parts = convexParts(cluster, params);
-  // The 16 nearest of 5 mm voxel centroids lie within about a centimetre.
-  GridSearch<Point> tree(kVoteSearchCell, false);
-  tree.setInputCloud(cluster);
-  mergeSmallParts(*cluster, tree, min_points, convex_parts);
-  mergeUnseparatedParts(*cluster, tree, table, sidewaysSmear(centroidOf(*cluster).norm(), params),
-                        convex_parts);
+  const NearestOfEach nearest(cluster);
+  mergeSmallParts(nearest, min_points, convex_parts);
+  mergeUnseparatedParts(*cluster, nearest, table,
+                        sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
   for (size_t i = 0; i < convex_parts.labels.size(); ++i)
@@ -1175,6 +1222,7 @@ std::vector<Eigen::Vector2f> topBandOutline(const Cloud& cloud, float top, const
 // number >= 0) are neighbours a few millimetres apart, not halves of one top: nothing lies
 // across the gap (their joint outline may still reach over taller neighbours).
 constexpr int kMaxUncoveredGapCells = 2;
+constexpr float kSurelyOutside = 0.001f;  // [m]
 std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
                                                   std::vector<int> parted_by_a_gap,
                                                   const Cloud& surroundings, const Plane& table,
@@ -1192,6 +1240,12 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     if (outline_a.size() < 3 || outline_b.size() < 3 || joint.size() < 3) return false;
     const float top = std::max(top_a, top_b);
     const PolygonEdges joint_edges(joint), edges_a(outline_a), edges_b(outline_b);
+    // The joint outline's bounding box, a millimetre wider: points beyond it lie outside the
+    // outline whatever the rounding of insideDistance, and most of the surroundings do.
+    Eigen::AlignedBox2f joint_box;
+    for (const Eigen::Vector2f& corner : joint) joint_box.extend(corner);
+    joint_box.extend(joint_box.min() - Eigen::Vector2f::Constant(kSurelyOutside));
+    joint_box.extend(joint_box.max() + Eigen::Vector2f::Constant(kSurelyOutside));
     // Per footprint cell of the gap: points over the tops and points lower, beyond kTopStep
     // (at their level lie strips of their own top that went with the object on it), counted +1
     // from the surroundings, -1 from the objects themselves.
@@ -1204,8 +1258,9 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
       for (const auto& p : cloud) {
         const float h = table.signedDistance(p.getVector3fMap());
         const Eigen::Vector2f q = onTable(p);
-        if (std::abs(h - top) <= kTopStep || joint_edges.insideDistance(q) < 0 ||
-            edges_a.insideDistance(q) >= -smear || edges_b.insideDistance(q) >= -smear)
+        if (std::abs(h - top) <= kTopStep || !joint_box.contains(q) ||
+            joint_edges.insideDistance(q) < 0 || edges_a.insideDistance(q) >= -smear ||
+            edges_b.insideDistance(q) >= -smear)
           continue;
         const Eigen::Vector2f c = q / kFootprintCell;
         GapCell& cell =

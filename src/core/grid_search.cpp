@@ -409,43 +409,45 @@ void GridSearch<PointT>::forEachPart(unsigned threads,
 
 template <typename PointT>
 void GridSearch<PointT>::forEachNearestKIndices(
-    int k, const std::function<void(int, const pcl::Indices&)>& visit) const {
-  if (k <= 0) return;
+    int k, const std::function<void(int, const pcl::Indices&)>& visit, unsigned threads) const {
+  if (k <= 0 || points_.empty()) return;
   const size_t wanted = static_cast<size_t>(k);
-  std::vector<float> xs, ys, zs, squared, fallback_distances;
-  std::vector<int> indices;
-  std::vector<uint64_t> keys;
-  pcl::Indices nearest;
-  forEachPointInBlocks(
-      0, points_.size(), [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
-      [&](const Entry& e) {
-        xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
-      },
-      [&](const Entry& q, float covered_squared) {
-        // (distance, index) as one integer, as forEachRadiusNeighbours: ordered as
-        // nearestKSearch orders its pairs, ties by index.
-        squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
-        keys.clear();
-        for (size_t j = 0; j < xs.size(); ++j) {
-          const float d = squared[j];
-          if (d <= covered_squared) {
-            uint32_t bits;
-            std::memcpy(&bits, &d, sizeof bits);
-            keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
+  forEachPart(threads, [&](size_t first, size_t last) {
+    std::vector<float> xs, ys, zs, squared, fallback_distances;
+    std::vector<int> indices;
+    std::vector<uint64_t> keys;
+    pcl::Indices nearest;
+    forEachPointInBlocks(
+        first, last, [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
+        [&](const Entry& e) {
+          xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
+        },
+        [&](const Entry& q, float covered_squared) {
+          // (distance, index) as one integer, as forEachRadiusNeighbours: ordered as
+          // nearestKSearch orders its pairs, ties by index.
+          squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
+          keys.clear();
+          for (size_t j = 0; j < xs.size(); ++j) {
+            const float d = squared[j];
+            if (d <= covered_squared) {
+              uint32_t bits;
+              std::memcpy(&bits, &d, sizeof bits);
+              keys.push_back(static_cast<uint64_t>(bits) << 32 | static_cast<uint32_t>(indices[j]));
+            }
           }
-        }
-        if (keys.size() >= wanted) {
-          std::nth_element(keys.begin(), keys.begin() + (wanted - 1), keys.end());
-          std::sort(keys.begin(), keys.begin() + wanted);
-          nearest.resize(wanted);
-          for (size_t j = 0; j < wanted; ++j) nearest[j] = static_cast<int>(keys[j] & ~0u);
-        } else {
-          PointT point;
-          point.x = q.x, point.y = q.y, point.z = q.z;
-          nearestKSearch(point, k, nearest, fallback_distances);  // the rings, same order
-        }
-        visit(q.index, nearest);
-      });
+          if (keys.size() >= wanted) {
+            std::nth_element(keys.begin(), keys.begin() + (wanted - 1), keys.end());
+            std::sort(keys.begin(), keys.begin() + wanted);
+            nearest.resize(wanted);
+            for (size_t j = 0; j < wanted; ++j) nearest[j] = static_cast<int>(keys[j] & ~0u);
+          } else {
+            PointT point;
+            point.x = q.x, point.y = q.y, point.z = q.z;
+            nearestKSearch(point, k, nearest, fallback_distances);  // the rings, same order
+          }
+          visit(q.index, nearest);
+        });
+  });
 }
 
 template <typename PointT>

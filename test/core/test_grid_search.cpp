@@ -153,6 +153,33 @@ TEST(GridSearch, NearestKIndicesOfEveryPointAreThoseOfAPairwiseSearch) {
   }
 }
 
+TEST(GridSearch, NearestKIndicesOnSeveralThreadsAreThoseOfOnePass) {
+  // The stack split's votes take the 16 nearest of every point of a pile on all free cores.
+  const CloudPtr cloud = surfaceCloud();
+  GridSearch<Point> search(0.01f);
+  search.setInputCloud(cloud);
+  std::vector<pcl::Indices> one_pass(cloud->size());
+  search.forEachNearestKIndices(16,
+                                [&](int i, const pcl::Indices& nearest) { one_pass[i] = nearest; });
+  for (const unsigned threads : {2u, 3u}) {
+    std::vector<pcl::Indices> shared_out(cloud->size());
+    std::vector<int> visits(cloud->size(), 0);
+    search.forEachNearestKIndices(
+        16,
+        [&](int i, const pcl::Indices& nearest) {
+          ++visits[i];  // each point once, so no two threads write one entry
+          shared_out[i] = nearest;
+        },
+        threads);
+    for (size_t i = 0; i + 1 < cloud->size(); ++i) {
+      EXPECT_EQ(visits[i], 1) << i << ", " << threads << " threads";
+      EXPECT_EQ(shared_out[i], one_pass[i]) << "point " << i << ", " << threads << " threads";
+      EXPECT_EQ(one_pass[i].size(), 16u);
+    }
+    EXPECT_EQ(visits.back(), 0);  // the NaN point
+  }
+}
+
 TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
   // 3 cm cells as the outlier removal uses them; ascending, and in any order (the same
   // multiset): the surface's points bound their selection by their cell neighbour's k-th

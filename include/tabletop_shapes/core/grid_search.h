@@ -48,9 +48,10 @@ class GridSearch : public pcl::search::Search<PointT> {
   void forEachNearestK(int k, const std::function<void(int, const std::vector<float>&)>& visit,
                        bool ascending = true, unsigned threads = 1) const;
   // The same with the neighbours' input indices: visit(index, the k nearest, nearest first,
-  // equal distances by index), the lists one nearestKSearch per point gives.
-  void forEachNearestKIndices(int k,
-                              const std::function<void(int, const pcl::Indices&)>& visit) const;
+  // equal distances by index), the lists one nearestKSearch per point gives. threads > 1: as
+  // forEachNearestK.
+  void forEachNearestKIndices(int k, const std::function<void(int, const pcl::Indices&)>& visit,
+                              unsigned threads = 1) const;
 
   // The neighbours of every point of the input within `radius` (squared distance < radius^2),
   // as radiusSearch finds and orders them: visit(index, neighbour indices), points in no

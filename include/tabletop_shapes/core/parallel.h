@@ -12,6 +12,11 @@ namespace tabletop_shapes {
 // first one; the other items still run).
 void parallelFor(size_t n, const std::function<void(size_t)>& body, unsigned threads = 0);
 
+// Helper threads parallelFor started so far in this process. Its helpers are kept between calls
+// (a pool): a call while the pool serves another (from within an item, or from another thread)
+// starts threads of its own.
+size_t parallelThreadsStarted();
+
 // The thread count parallelFor uses when given 0: the last setWorkerThreads(n > 0), else the
 // environment variable TABLETOP_SHAPES_THREADS (a positive number), else one per core. The
 // results must not depend on it; tests and tools set it to show that they do not.
