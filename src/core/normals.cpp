@@ -63,17 +63,44 @@ template <typename Real>
   std::memcpy(values, &lanes, sizeof lanes);
 }
 
-// The sum of the lanes, in doubles.
-[[gnu::always_inline]] inline double sumOfLanes(LanesOf<double> lanes) {
-  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-}
-[[gnu::always_inline]] inline double sumOfLanes(FloatLanes lanes) {
+// The lanes of a float vector in doubles, each added to the one four places on (exact).
+[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(FloatLanes lanes) {
   using Half = float __attribute__((vector_size(kLaneBytes / 2)));
-  Half low, high;  // a lane added to the one four places on: exact in doubles
+  Half low, high;
   std::memcpy(&low, &lanes, sizeof low);
   std::memcpy(&high, reinterpret_cast<const char*>(&lanes) + sizeof low, sizeof high);
-  return sumOfLanes(__builtin_convertvector(low, LanesOf<double>) +
-                    __builtin_convertvector(high, LanesOf<double>));
+  return __builtin_convertvector(low, LanesOf<double>) +
+         __builtin_convertvector(high, LanesOf<double>);
+}
+[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(LanesOf<double> lanes) {
+  return lanes;
+}
+
+// sums[i] = the sum of the lanes of lanes[i], i < kCount, in doubles: (l0 + l1) + (l2 + l3) of
+// the lanes in doubles, four vectors at a time, each step one add for the four after a shuffle.
+template <int kCount, typename Lanes>
+[[gnu::always_inline]] inline void sumsOfLanes(const Lanes (&lanes)[kCount], double* sums) {
+  using Doubles = LanesOf<double>;
+  constexpr int kGroups = (kCount + 3) / 4;
+  Doubles folded[4 * kGroups] = {};
+#pragma GCC unroll 28
+  for (int i = 0; i < kCount; ++i) folded[i] = foldedInDoubles(lanes[i]);
+#pragma GCC unroll 7
+  for (int group = 0; group < kGroups; ++group) {
+    const Doubles a = folded[4 * group], b = folded[4 * group + 1], c = folded[4 * group + 2],
+                  d = folded[4 * group + 3];
+    // (a0 + a1, b0 + b1, a2 + a3, b2 + b3), the same of c and d, then their halves added.
+    const Doubles ab =
+        __builtin_shufflevector(a, b, 0, 4, 2, 6) + __builtin_shufflevector(a, b, 1, 5, 3, 7);
+    const Doubles cd =
+        __builtin_shufflevector(c, d, 0, 4, 2, 6) + __builtin_shufflevector(c, d, 1, 5, 3, 7);
+    const Doubles totals =
+        __builtin_shufflevector(ab, cd, 0, 1, 4, 5) + __builtin_shufflevector(ab, cd, 2, 3, 6, 7);
+#pragma GCC unroll 4
+    for (int i = 0; i < 4; ++i) {
+      if (4 * group + i < kCount) sums[4 * group + i] = totals[i];
+    }
+  }
 }
 
 // exp of each lane (Cephes' expf: exp(x) = 2^k exp(f), k = round(x / ln 2), |f| <= ln 2 / 2,
@@ -177,11 +204,14 @@ template <typename Real>
     sxx += x * x, sxy += x * y, sxz += x * z;
     syy += y * y, syz += y * z, szz += z * z;
   }
-  const Eigen::Vector3d first(sumOfLanes(sx), sumOfLanes(sy), sumOfLanes(sz));
+  const FloatLanes lanes[9] = {sx, sy, sz, sxx, sxy, sxz, syy, syz, szz};
+  double sums[9];
+  sumsOfLanes(lanes, sums);
+  const Eigen::Vector3d first(sums[0], sums[1], sums[2]);
   Eigen::Matrix3d second;
-  second << sumOfLanes(sxx), sumOfLanes(sxy), sumOfLanes(sxz),  //
-      sumOfLanes(sxy), sumOfLanes(syy), sumOfLanes(syz),        //
-      sumOfLanes(sxz), sumOfLanes(syz), sumOfLanes(szz);
+  second << sums[3], sums[4], sums[5],  //
+      sums[4], sums[6], sums[7],        //
+      sums[5], sums[7], sums[8];
   const double count = static_cast<double>(near.count);
   centroid = first / count;
   scatter = second - first * centroid.transpose();
@@ -250,13 +280,14 @@ template <int kOrder, typename Real>
       for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
     }
   }
-  double moment_sums[Poly::kMoments];
-  for (int m = 0; m < Poly::kMoments; ++m) moment_sums[m] = sumOfLanes(moments[m]);
+  double moment_sums[Poly::kMoments], right_sums[kTerms];
+  sumsOfLanes(moments, moment_sums);
+  sumsOfLanes(right, right_sums);
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
   Eigen::Matrix<double, kTerms, 1> right_side;
 #pragma GCC unroll 15
   for (int a = 0; a < kTerms; ++a) {
-    right_side[a] = sumOfLanes(right[a]);
+    right_side[a] = right_sums[a];
 #pragma GCC unroll 15
     for (int b = 0; b <= a; ++b) normal_matrix(a, b) = moment_sums[Poly::kEntryMoment[a][b]];
   }
