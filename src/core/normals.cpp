@@ -9,58 +9,207 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <limits>
+#include <type_traits>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define TABLETOP_SHAPES_GATHER_LANES 1
+#endif
 
 namespace tabletop_shapes {
 namespace {
 
-// Four neighbours at a time, one per lane (GCC's vector extension: one AVX instruction where
-// fitLocalSurface's AVX2 clone runs, two SSE2 ones elsewhere, the same doubles either way, as
-// no clone fuses a multiply and an add).
-constexpr size_t kLanes = 4;
-// The helpers below are always inlined: no call passes Lanes by value, so GCC's note that
+// The passes below run on 32 bytes of neighbours at a time, one per lane (GCC's vector
+// extension: one AVX instruction where fitLocalSurface's AVX2 clone runs, two SSE2 ones
+// elsewhere, the same numbers either way, as no clone fuses a multiply and an add): eight
+// floats or four doubles. Floats suffice where every quantity summed is small and of one
+// scale: the offsets from the query point (exact in floats where the two coordinates lie
+// within a factor 2 of each other, else rounded below 1e-9 m) for the plane, and for a polynomial
+// of order 2 the Darboux coordinates in units of the search radius (|u|, |v| <= ~1.5), whose
+// moments up to degree 4 are of order 1 (against PCL's doubles: points within 1e-6 m, normals
+// within 1e-5). Orders 3 and 4 stay in doubles: their normal equations are too ill-conditioned for
+// float sums (normals off by up to 0.1). The sums of the lanes, the plane's eigenvectors and the
+// normal equations' solution are doubles.
+constexpr size_t kLaneBytes = 32;
+// The helpers below are always inlined: no call passes lanes by value, so GCC's note that
 // doing so without AVX changes the ABI does not apply.
 #pragma GCC diagnostic ignored "-Wpsabi"
-using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
+template <typename Real>
+struct LaneTypes;
+template <>
+struct LaneTypes<float> {
+  using Lanes = float __attribute__((vector_size(kLaneBytes)));
+  using Floats = Lanes;  // the coordinates of as many neighbours
+};
+template <>
+struct LaneTypes<double> {
+  using Lanes = double __attribute__((vector_size(kLaneBytes)));
+  using Floats = float __attribute__((vector_size(kLaneBytes / 2)));
+};
+template <typename Real>
+using LanesOf = typename LaneTypes<Real>::Lanes;
+template <typename Real>
+constexpr size_t kLanesOf = kLaneBytes / sizeof(Real);
+constexpr size_t kMostLanes = kLanesOf<float>;  // neighbourhoods are padded to a multiple
+using FloatLanes = LanesOf<float>;
+using IntLanes = int32_t __attribute__((vector_size(kLaneBytes)));
 
-[[gnu::always_inline]] inline Lanes loadLanes(const double* values) {
-  Lanes lanes;
+template <typename Real>
+[[gnu::always_inline]] inline LanesOf<Real> loadLanes(const Real* values) {
+  LanesOf<Real> lanes;
   std::memcpy(&lanes, values, sizeof lanes);
   return lanes;
 }
 
-[[gnu::always_inline]] inline void storeLanes(double* values, Lanes lanes) {
+template <typename Real>
+[[gnu::always_inline]] inline void storeLanes(Real* values, LanesOf<Real> lanes) {
   std::memcpy(values, &lanes, sizeof lanes);
 }
 
-[[gnu::always_inline]] inline double sumOfLanes(Lanes lanes) {
-  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+// The lanes of a float vector in doubles, each added to the one four places on (exact).
+[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(FloatLanes lanes) {
+  using Half = float __attribute__((vector_size(kLaneBytes / 2)));
+  Half low, high;
+  std::memcpy(&low, &lanes, sizeof low);
+  std::memcpy(&high, reinterpret_cast<const char*>(&lanes) + sizeof low, sizeof high);
+  return __builtin_convertvector(low, LanesOf<double>) +
+         __builtin_convertvector(high, LanesOf<double>);
+}
+[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(LanesOf<double> lanes) {
+  return lanes;
+}
+
+// sums[i] = the sum of the lanes of lanes[i], i < kCount, in doubles: (l0 + l1) + (l2 + l3) of
+// the lanes in doubles, four vectors at a time, each step one add for the four after a shuffle.
+template <int kCount, typename Lanes>
+[[gnu::always_inline]] inline void sumsOfLanes(const Lanes (&lanes)[kCount], double* sums) {
+  using Doubles = LanesOf<double>;
+  constexpr int kGroups = (kCount + 3) / 4;
+  Doubles folded[4 * kGroups] = {};
+#pragma GCC unroll 28
+  for (int i = 0; i < kCount; ++i) folded[i] = foldedInDoubles(lanes[i]);
+#pragma GCC unroll 7
+  for (int group = 0; group < kGroups; ++group) {
+    const Doubles a = folded[4 * group], b = folded[4 * group + 1], c = folded[4 * group + 2],
+                  d = folded[4 * group + 3];
+    // (a0 + a1, b0 + b1, a2 + a3, b2 + b3), the same of c and d, then their halves added.
+    const Doubles ab =
+        __builtin_shufflevector(a, b, 0, 4, 2, 6) + __builtin_shufflevector(a, b, 1, 5, 3, 7);
+    const Doubles cd =
+        __builtin_shufflevector(c, d, 0, 4, 2, 6) + __builtin_shufflevector(c, d, 1, 5, 3, 7);
+    const Doubles totals =
+        __builtin_shufflevector(ab, cd, 0, 1, 4, 5) + __builtin_shufflevector(ab, cd, 2, 3, 6, 7);
+#pragma GCC unroll 4
+    for (int i = 0; i < 4; ++i) {
+      if (4 * group + i < kCount) sums[4 * group + i] = totals[i];
+    }
+  }
+}
+
+// exp of each lane (Cephes' expf: exp(x) = 2^k exp(f), k = round(x / ln 2), |f| <= ln 2 / 2,
+// exp(f) by a polynomial of degree 7), x clamped to [-87, 88]: within 1 float ulp of exp on
+// MLS's weights' range (measured on every float of [-5, 0] and on [-87, -5] in steps of 1e-4).
+[[gnu::always_inline]] inline FloatLanes expLanes(FloatLanes x) {
+  x = x < -87.0f ? FloatLanes{} - 87.0f : x;
+  x = x > 88.0f ? FloatLanes{} + 88.0f : x;
+  constexpr float kRound = 12582912.0f;  // 1.5 * 2^23: adding it rounds to an integer
+  const FloatLanes k = (x * 1.44269504088896341f + kRound) - kRound;
+  const FloatLanes f = (x - k * 0.693359375f) - k * -2.12194440e-4f;
+  FloatLanes p = FloatLanes{} + 1.9875691500e-4f;
+  p = p * f + 1.3981999507e-3f;
+  p = p * f + 8.3334519073e-3f;
+  p = p * f + 4.1665795894e-2f;
+  p = p * f + 1.6666665459e-1f;
+  p = p * f + 5.0000001201e-1f;
+  p = (p * f) * f + f + 1.0f;
+  const IntLanes exponent = (__builtin_convertvector(k, IntLanes) + 127) << 23;
+  FloatLanes scale;
+  std::memcpy(&scale, &exponent, sizeof scale);
+  return p * scale;
 }
 
 constexpr int kMaxOrder = 4;  // normals.polynomial_order's range
 
+// Neighbours in the Darboux frame: u, v and height in units of the search radius, and their
+// weights, one array per quantity.
+template <typename Real>
+struct FrameCoordinates {
+  std::vector<Real> u, v, height, weight;
+  void resize(size_t size) {
+    for (std::vector<Real>* values : {&u, &v, &height, &weight}) values->resize(size);
+  }
+};
+
+#ifdef TABLETOP_SHAPES_GATHER_LANES
+// xs[k], ys[k], zs[k] = the coordinates of cloud[indices[k]], eight neighbours at a time with
+// AVX2's gathers (three instructions for eight neighbours' coordinates, against ~80 one at a
+// time) where the CPU has them; the number of neighbours copied (a multiple of 8).
+__attribute__((target("avx2"))) size_t gatherEightAtATimeInAvx2(const Cloud& cloud,
+                                                                const pcl::Indices& indices,
+                                                                float* xs, float* ys, float* zs) {
+  static_assert(sizeof(Point) == 4 * sizeof(float) && sizeof(pcl::index_t) == sizeof(int32_t));
+  const float* first = &cloud.points.front().x;
+  size_t k = 0;
+  for (; k + 8 <= indices.size(); k += 8) {
+    // The offset of each point's x in floats (the cloud holds far fewer than 2^29 points).
+    const __m256i at =
+        _mm256_slli_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(&indices[k])), 2);
+    _mm256_storeu_ps(xs + k, _mm256_i32gather_ps(first, at, sizeof(float)));
+    _mm256_storeu_ps(ys + k, _mm256_i32gather_ps(first + 1, at, sizeof(float)));
+    _mm256_storeu_ps(zs + k, _mm256_i32gather_ps(first + 2, at, sizeof(float)));
+  }
+  return k;
+}
+#endif
+
+// As many neighbours' coordinates as gatherEightAtATimeInAvx2 copies where the CPU has AVX2,
+// else none; their number.
+size_t gatherEightAtATime(const Cloud& cloud, const pcl::Indices& indices, float* xs, float* ys,
+                          float* zs) {
+#ifdef TABLETOP_SHAPES_GATHER_LANES
+  static const bool has_avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  if (has_avx2) return gatherEightAtATimeInAvx2(cloud, indices, xs, ys, zs);
+#endif
+  return 0;
+}
+
 // A neighbourhood as the passes of fitLocalSurface read it, one array per quantity, padded to
-// a multiple of kLanes so that each pass runs on kLanes neighbours at a time: first the
-// neighbours' coordinates as the cloud holds them (floats: their offsets from the query point
-// are taken in the passes, exact in doubles), then their place in the Darboux frame (u, v,
-// height) with their weights. The padding neighbours sit at the query point and weigh 0, so
-// they add exact zeros to every sum.
+// a multiple of kMostLanes so that each pass runs on whole lanes: first the neighbours'
+// coordinates as the cloud holds them (their offsets from the query point are taken in the
+// passes), then their place in the Darboux frame, in floats or in doubles after the
+// polynomial's order. The padding neighbours sit at the query point and weigh 0, so they add
+// exact zeros to every sum.
 struct Neighbourhood {
   std::vector<float> px, py, pz;
-  std::vector<double> u, v, height, weight;
-  Eigen::Vector3d query;
+  FrameCoordinates<float> frame_in_floats;
+  FrameCoordinates<double> frame_in_doubles;
+  Eigen::Vector3f query;
   size_t count = 0, padded = 0;
+
+  template <typename Real>
+  FrameCoordinates<Real>& frame() {
+    if constexpr (std::is_same_v<Real, float>) {
+      return frame_in_floats;
+    } else {
+      return frame_in_doubles;
+    }
+  }
 
   void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query_point) {
     count = indices.size();
-    padded = (count + kLanes - 1) / kLanes * kLanes;
-    query = query_point.getVector3fMap().cast<double>();
+    padded = (count + kMostLanes - 1) / kMostLanes * kMostLanes;
+    query = query_point.getVector3fMap();
     if (px.size() < padded) {  // grown only: the passes read the first `padded`
       for (std::vector<float>* values : {&px, &py, &pz}) values->resize(padded);
-      for (std::vector<double>* values : {&u, &v, &height, &weight}) values->resize(padded);
     }
     float *xs = px.data(), *ys = py.data(), *zs = pz.data();
-    for (size_t k = 0; k < count; ++k) {
+    for (size_t k = gatherEightAtATime(cloud, indices, xs, ys, zs); k < count; ++k) {
       const Point& p = cloud[indices[k]];
       xs[k] = p.x, ys[k] = p.y, zs[k] = p.z;
     }
@@ -69,35 +218,42 @@ struct Neighbourhood {
   }
 };
 
-// Neighbours k .. k + kLanes - 1 of `coordinates` less the query's `origin`, in doubles.
-[[gnu::always_inline]] inline Lanes offsetLanes(const float* coordinates, size_t k, double origin) {
-  using FloatLanes = float __attribute__((vector_size(kLanes * sizeof(float))));
-  FloatLanes floats;
+// Neighbours k .. k + kLanesOf<Real> - 1 of `coordinates` less the query's `origin` (exact in
+// floats), in Real.
+template <typename Real>
+[[gnu::always_inline]] inline LanesOf<Real> offsetLanes(const float* coordinates, size_t k,
+                                                        float origin) {
+  typename LaneTypes<Real>::Floats floats;
   std::memcpy(&floats, coordinates + k, sizeof floats);
-  return __builtin_convertvector(floats, Lanes) - origin;
+  return __builtin_convertvector(floats - origin, LanesOf<Real>);
 }
 
 // The neighbours' centroid (as an offset from the query point) and scatter matrix about it
 // (PCL's computeCovarianceMatrix: sums, not divided by the count), from the sums of the offsets
 // and of their products in one pass: offsets within the search radius, so the difference of the
-// two sums loses nothing that matters (a few 1e-20 m^2 against a scatter of 1e-6 m^2 or more).
+// two sums loses nothing that matters (float sums: ~1e-11 m^2 against a scatter of 1e-6 m^2 or
+// more).
 [[gnu::always_inline]] inline void centroidAndScatter(const Neighbourhood& near,
                                                       Eigen::Vector3d& centroid,
                                                       Eigen::Matrix3d& scatter) {
-  Lanes sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
+  FloatLanes sx = {}, sy = {}, sz = {}, sxx = {}, sxy = {}, sxz = {}, syy = {}, syz = {}, szz = {};
   const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
-  for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
-    const Lanes x = offsetLanes(xs, k, near.query[0]), y = offsetLanes(ys, k, near.query[1]),
-                z = offsetLanes(zs, k, near.query[2]);
+  for (size_t k = 0, padded = near.padded; k < padded; k += kMostLanes) {
+    const FloatLanes x = offsetLanes<float>(xs, k, near.query[0]),
+                     y = offsetLanes<float>(ys, k, near.query[1]),
+                     z = offsetLanes<float>(zs, k, near.query[2]);
     sx += x, sy += y, sz += z;
     sxx += x * x, sxy += x * y, sxz += x * z;
     syy += y * y, syz += y * z, szz += z * z;
   }
-  const Eigen::Vector3d first(sumOfLanes(sx), sumOfLanes(sy), sumOfLanes(sz));
+  const FloatLanes lanes[9] = {sx, sy, sz, sxx, sxy, sxz, syy, syz, szz};
+  double sums[9];
+  sumsOfLanes(lanes, sums);
+  const Eigen::Vector3d first(sums[0], sums[1], sums[2]);
   Eigen::Matrix3d second;
-  second << sumOfLanes(sxx), sumOfLanes(sxy), sumOfLanes(sxz),  //
-      sumOfLanes(sxy), sumOfLanes(syy), sumOfLanes(syz),        //
-      sumOfLanes(sxz), sumOfLanes(syz), sumOfLanes(szz);
+  second << sums[3], sums[4], sums[5],  //
+      sums[4], sums[6], sums[7],        //
+      sums[5], sums[7], sums[8];
   const double count = static_cast<double>(near.count);
   centroid = first / count;
   scatter = second - first * centroid.transpose();
@@ -134,21 +290,23 @@ struct Polynomial {
 };
 
 // The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
-// r^2)) in `coefficients`: its normal equations from the moments, summed over kLanes
-// neighbours at a time (one per lane) with the order fixed at compile time so that the loops
-// unroll. False when the normal equations are not positive definite (neighbours on a line in (u,
-// v)).
-template <int kOrder>
-[[gnu::always_inline]] inline bool fitPolynomial(const Neighbourhood& near, double* coefficients) {
+// r^2)) in `coefficients`: its normal equations from the moments, summed over a lane's worth
+// of neighbours at a time (one per lane) with the order fixed at compile time so that the
+// loops unroll. False when the normal equations are not positive definite (neighbours on a
+// line in (u, v)).
+template <int kOrder, typename Real>
+[[gnu::always_inline]] inline bool fitPolynomial(const FrameCoordinates<Real>& frame, size_t padded,
+                                                 double* coefficients) {
   using Poly = Polynomial<kOrder>;
+  using Lanes = LanesOf<Real>;
   constexpr int kTerms = Poly::kTerms, kDegree = Poly::kDegree;
   Lanes moments[Poly::kMoments] = {};
   Lanes right[kTerms] = {};
-  for (size_t k = 0; k < near.padded; k += kLanes) {
-    const Lanes u = loadLanes(&near.u[k]), v = loadLanes(&near.v[k]);
-    const Lanes height = loadLanes(&near.height[k]);
+  for (size_t k = 0; k < padded; k += kLanesOf<Real>) {
+    const Lanes u = loadLanes(&frame.u[k]), v = loadLanes(&frame.v[k]);
+    const Lanes height = loadLanes(&frame.height[k]);
     Lanes row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
-    row[0] = loadLanes(&near.weight[k]);
+    row[0] = loadLanes(&frame.weight[k]);
 #pragma GCC unroll 8
     for (int j = 1; j <= kDegree; ++j) row[j] = row[j - 1] * v;
     int moment = 0, term = 0;
@@ -164,13 +322,14 @@ template <int kOrder>
       for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
     }
   }
-  double moment_sums[Poly::kMoments];
-  for (int m = 0; m < Poly::kMoments; ++m) moment_sums[m] = sumOfLanes(moments[m]);
+  double moment_sums[Poly::kMoments], right_sums[kTerms];
+  sumsOfLanes(moments, moment_sums);
+  sumsOfLanes(right, right_sums);
   Eigen::Matrix<double, kTerms, kTerms> normal_matrix;
   Eigen::Matrix<double, kTerms, 1> right_side;
 #pragma GCC unroll 15
   for (int a = 0; a < kTerms; ++a) {
-    right_side[a] = sumOfLanes(right[a]);
+    right_side[a] = right_sums[a];
 #pragma GCC unroll 15
     for (int b = 0; b <= a; ++b) normal_matrix(a, b) = moment_sums[Poly::kEntryMoment[a][b]];
   }
@@ -204,6 +363,87 @@ template <int kOrder>
   return true;
 }
 
+// The Darboux frame of a query point: its origin (the query point projected on the plane, as
+// an offset from the query point; PCL's MLSResult::mean) and axes (the plane's normal last).
+struct DarbouxFrame {
+  Eigen::Vector3d origin, u_axis, v_axis, normal;
+};
+
+// The neighbours' coordinates in `darboux` in units of the radius and their weights, then the
+// polynomial of order kOrder fitted over them, in Real lanes.
+template <int kOrder, typename Real>
+[[gnu::always_inline]] inline bool fitPolynomialInFrame(Neighbourhood& near,
+                                                        const DarbouxFrame& darboux,
+                                                        double search_radius,
+                                                        double* coefficients) {
+  using Lanes = LanesOf<Real>;
+  using Vector = Eigen::Matrix<Real, 3, 1>;
+  const Real inverse_radius = static_cast<Real>(1.0 / search_radius);
+  const Vector at = darboux.origin.cast<Real>(), u_along = darboux.u_axis.cast<Real>(),
+               v_along = darboux.v_axis.cast<Real>(), up = darboux.normal.cast<Real>();
+  FrameCoordinates<Real>& frame = near.frame<Real>();
+  if (frame.u.size() < near.padded) frame.resize(near.padded);  // grown only
+  // The arrays in locals: the stores (memcpy) may alias anything, the vectors' members included.
+  const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
+  Real *weights = frame.weight.data(), *us = frame.u.data(), *vs = frame.v.data(),
+       *heights = frame.height.data();
+  for (size_t k = 0, padded = near.padded; k < padded; k += kLanesOf<Real>) {
+    const Lanes x = (offsetLanes<Real>(xs, k, near.query[0]) - at[0]) * inverse_radius;
+    const Lanes y = (offsetLanes<Real>(ys, k, near.query[1]) - at[1]) * inverse_radius;
+    const Lanes z = (offsetLanes<Real>(zs, k, near.query[2]) - at[2]) * inverse_radius;
+    const Lanes exponent = -(x * x + y * y + z * z);  // -d^2 / r^2
+    if constexpr (std::is_same_v<Real, float>) {
+      storeLanes(weights + k, expLanes(exponent));
+    } else {
+      storeLanes(weights + k, exponent);
+    }
+    storeLanes(us + k, x * u_along[0] + y * u_along[1] + z * u_along[2]);
+    storeLanes(vs + k, x * v_along[0] + y * v_along[1] + z * v_along[2]);
+    storeLanes(heights + k, x * up[0] + y * up[1] + z * up[2]);
+  }
+  if constexpr (!std::is_same_v<Real, float>) expInPlace(weights, near.padded);
+  for (size_t k = near.count; k < near.padded; ++k) weights[k] = 0;
+  return fitPolynomial<kOrder>(frame, near.padded, coefficients);
+}
+
+// The smallest eigenvalue of the symmetric positive semi-definite `scatter` and its unit
+// eigenvector, as pcl::eigen33 gives them (the matrix scaled to entries in [-1, 1], the
+// eigenvector from the cross products of the rows of the matrix less the eigenvalue) but for
+// the eigenvalue: the smallest root of the characteristic polynomial by Newton's method (from 0
+// the iterates rise monotonically to it, as the polynomial is increasing and concave below its
+// smallest root; 5 steps for most points, at most 9 on 65k points of two OSD scenes and a
+// rendered one) instead of the closed form's atan2, sin and cos. Where Newton is slow (a double
+// root: points on a line or in a ball) or the root is 0, pcl::eigen33 itself.
+void smallestEigenvector(const Eigen::Matrix3d& scatter, double& eigen_value,
+                         Eigen::Vector3d& eigen_vector) {
+  double scale = scatter.cwiseAbs().maxCoeff();
+  if (scale <= std::numeric_limits<double>::min()) scale = 1.0;
+  Eigen::Matrix3d m = scatter / scale;
+  // x^3 - c2 x^2 + c1 x - c0, as pcl::computeRoots writes it.
+  const double c0 = m(0, 0) * m(1, 1) * m(2, 2) + 2.0 * m(0, 1) * m(0, 2) * m(1, 2) -
+                    m(0, 0) * m(1, 2) * m(1, 2) - m(1, 1) * m(0, 2) * m(0, 2) -
+                    m(2, 2) * m(0, 1) * m(0, 1);
+  const double c1 = m(0, 0) * m(1, 1) - m(0, 1) * m(0, 1) + m(0, 0) * m(2, 2) - m(0, 2) * m(0, 2) +
+                    m(1, 1) * m(2, 2) - m(1, 2) * m(1, 2);
+  const double c2 = m(0, 0) + m(1, 1) + m(2, 2);
+  if (!(std::abs(c0) >= std::numeric_limits<double>::epsilon()))
+    return pcl::eigen33(scatter, eigen_value, eigen_vector);  // a root 0 (PCL: quadratic)
+  constexpr int kMaxNewtonSteps = 12;
+  double root = 0.0;
+  for (int steps = 0;; ++steps) {
+    if (steps == kMaxNewtonSteps) return pcl::eigen33(scatter, eigen_value, eigen_vector);
+    const double value = ((root - c2) * root + c1) * root - c0;
+    const double slope = (3.0 * root - 2.0 * c2) * root + c1;
+    const double rise = -value / slope;
+    if (!std::isfinite(rise)) return pcl::eigen33(scatter, eigen_value, eigen_vector);
+    root += rise;
+    if (!(rise > 1e-15 * root)) break;  // converged (rounding may end on a step down)
+  }
+  eigen_value = root * scale;
+  m.diagonal().array() -= root;
+  eigen_vector = pcl::detail::getLargest3x3Eigenvector<Eigen::Vector3d>(m).vector;
+}
+
 // A query point's smoothed place, its normal, and the plane fit's curvature (PCL's:
 // smallest eigenvalue over the trace).
 struct LocalSurface {
@@ -215,8 +455,9 @@ struct LocalSurface {
 // projectQueryPoint with SIMPLE projection): the plane of the neighbours' scatter matrix, the
 // query point projected on it, the Darboux frame, a weighted polynomial fit of the heights
 // over it, and the point moved to the polynomial at (0, 0) with the polynomial's normal there.
-// The same arithmetic as PCL's but for the order of the additions: the neighbours come
-// unsorted, the sums run on kLanes of them at a time, and the normal equations are made of moments.
+// The same arithmetic as PCL's but for the order of the additions and floats where they
+// suffice: the neighbours come unsorted, the sums run on a lane's worth of them at a time, the
+// polynomial is fitted in units of the radius, and the normal equations are made of moments.
 // False when the neighbourhood has no plane (coincident or collinear neighbours).
 __attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbourhood& near,
                                                                        double search_radius,
@@ -227,56 +468,40 @@ __attribute__((target_clones("avx2", "default"))) bool fitLocalSurface(Neighbour
   centroidAndScatter(near, centroid, scatter);
   double eigen_value;
   Eigen::Vector3d normal;
-  pcl::eigen33(scatter, eigen_value, normal);
+  smallestEigenvector(scatter, eigen_value, normal);
   if (!normal.allFinite()) return false;
   // The query point (the origin of the offsets) projected on the plane: the origin of the
   // Darboux frame (PCL's MLSResult::mean).
   const Eigen::Vector3d mean = normal.dot(centroid) * normal;
   const double trace = scatter.trace();
   surface.curvature = trace != 0 ? std::abs(eigen_value / trace) : trace;
-  surface.point = near.query + mean;
+  surface.point = near.query.cast<double>() + mean;
   surface.normal = normal;
   const int terms = (order + 1) * (order + 2) / 2;
   if (order <= 1 || static_cast<int>(near.count) < terms) return true;
 
-  // The Darboux frame and the weights, kLanes neighbours at a time; the weights' exp four at a
-  // time.
-  const Eigen::Vector3d v_axis = normal.unitOrthogonal(), u_axis = normal.cross(v_axis);
-  const double negative_inverse = -1.0 / (search_radius * search_radius);
-  // The arrays in locals: the stores (memcpy) may alias anything, the vectors' members included.
-  const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
-  double *weights = near.weight.data(), *us = near.u.data(), *vs = near.v.data(),
-         *heights = near.height.data();
-  for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
-    const Lanes x = offsetLanes(xs, k, near.query[0]) - mean[0];
-    const Lanes y = offsetLanes(ys, k, near.query[1]) - mean[1];
-    const Lanes z = offsetLanes(zs, k, near.query[2]) - mean[2];
-    storeLanes(weights + k, (x * x + y * y + z * z) * negative_inverse);
-    storeLanes(us + k, x * u_axis[0] + y * u_axis[1] + z * u_axis[2]);
-    storeLanes(vs + k, x * v_axis[0] + y * v_axis[1] + z * v_axis[2]);
-    storeLanes(heights + k, x * normal[0] + y * normal[1] + z * normal[2]);
-  }
-  expInPlace(near.weight.data(), near.padded);
-  for (size_t k = near.count; k < near.padded; ++k) near.weight[k] = 0.0;
-
+  DarbouxFrame darboux{mean, {}, normal.unitOrthogonal(), normal};
+  darboux.u_axis = normal.cross(darboux.v_axis);
   double coefficients[Polynomial<kMaxOrder>::kTerms];
   bool solved = false;
   switch (order) {
     case 2:
-      solved = fitPolynomial<2>(near, coefficients);
+      solved = fitPolynomialInFrame<2, float>(near, darboux, search_radius, coefficients);
       break;
     case 3:
-      solved = fitPolynomial<3>(near, coefficients);
+      solved = fitPolynomialInFrame<3, double>(near, darboux, search_radius, coefficients);
       break;
     default:
-      solved = fitPolynomial<4>(near, coefficients);
+      solved = fitPolynomialInFrame<4, double>(near, darboux, search_radius, coefficients);
   }
   if (!solved || !std::isfinite(coefficients[0])) return true;  // PCL: the plane's projection
   // At (u, v) = (0, 0) the polynomial is its constant term and its gradient the coefficients of
   // v (term 1) and of u (term order + 1).
-  surface.point += coefficients[0] * normal;
+  // The polynomial is of heights in units of the radius over (u, v) in the same units: its
+  // constant term scales back by the radius, its gradient is a ratio of lengths.
+  surface.point += coefficients[0] * search_radius * normal;
   const Eigen::Vector3d tilted =
-      normal - coefficients[order + 1] * u_axis - coefficients[1] * v_axis;
+      normal - coefficients[order + 1] * darboux.u_axis - coefficients[1] * darboux.v_axis;
   surface.normal = tilted.normalized();
   return true;
 }

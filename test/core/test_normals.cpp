@@ -286,6 +286,64 @@ TEST(NormalsMLS, SurfaceAndNormalOfEveryPointAreThoseOfTheDefinitionUpToRounding
   }
 }
 
+// Order 2 sums its neighbours in floats, in units of the radius: they hold at both ends of the
+// radius' range (normals.search_radius 0.002 .. 0.2 m) and of the depth range (0.5 .. 3 m, a
+// float's ulp 6e-8 .. 2.4e-7 m): against the definition in doubles, points within 2 ulps of the
+// cloud's floats; normals within 1e-5 (as PCL's double fit against its definition) where the
+// neighbourhood is whole, and within 1e-3 (0.06 deg) at the patch's border, where a one-sided
+// neighbourhood makes the normal equations ill-conditioned (a corner point: 5e-5 .. 1.4e-4).
+TEST(NormalsMLS, FloatSumsHoldAcrossTheRadiusRangeAndTheDepthRange) {
+  for (const float radius : {0.002f, 0.2f}) {
+    for (const float depth : {0.5f, 2.9f}) {
+      auto cloud = std::make_shared<Cloud>();
+      std::mt19937 rng(11);
+      std::normal_distribution<float> noise(0.0f, 0.05f * radius);
+      const Eigen::Vector3f centre(0.3f * depth, 0.1f * depth, depth);
+      const float spacing = radius / 4.0f, extent = 2.5f * radius;
+      for (float a = -extent; a <= extent; a += spacing) {
+        for (float b = -extent; b <= extent; b += spacing) {
+          // A saddle-like quadric of curvature ~1 / (3 r), tilted towards the camera.
+          const float height = (a * a - 0.5f * a * b + 0.3f * b * b) / (3.0f * radius);
+          cloud->push_back(Point(centre.x() + a, centre.y() + b + 0.4f * height + noise(rng),
+                                 centre.z() + height + noise(rng)));
+        }
+      }
+      NormalParams params;
+      params.search_radius = radius;
+      NormalCloud ours;
+      estimateNormalsMLS(cloud, params, ours);
+      std::vector<pcl::PointNormal> expected;
+      for (size_t i = 0; i < cloud->size(); ++i) {
+        bool fitted = false;
+        const pcl::PointNormal p = definitionOfMls(*cloud, i, radius, fitted);
+        if (fitted) expected.push_back(p);
+      }
+      ASSERT_EQ(ours.size(), expected.size()) << "radius " << radius << ", depth " << depth;
+      float worst_point = 0.0f, worst_inner_normal = 0.0f, worst_normal = 0.0f;
+      int inner = 0;
+      for (size_t i = 0; i < ours.size(); ++i) {
+        worst_point =
+            std::max(worst_point, (ours[i].getVector3fMap() - expected[i].getVector3fMap()).norm());
+        const float normal_error =
+            (ours[i].getNormalVector3fMap() - expected[i].getNormalVector3fMap()).norm();
+        worst_normal = std::max(worst_normal, normal_error);
+        const Eigen::Vector3f offset = ours[i].getVector3fMap() - centre;
+        if (std::max(std::abs(offset.x()), std::abs(offset.y())) < extent - radius) {
+          worst_inner_normal = std::max(worst_inner_normal, normal_error);
+          ++inner;
+        }
+      }
+      const float ulp = std::nextafter(depth, 4.0f) - depth;
+      EXPECT_GT(inner, 50);
+      EXPECT_LT(worst_point, 2.0f * ulp) << "radius " << radius << ", depth " << depth;
+      EXPECT_LT(worst_inner_normal, 1e-5f) << "radius " << radius << ", depth " << depth;
+      EXPECT_LT(worst_normal, 1e-3f) << "radius " << radius << ", depth " << depth;
+      std::printf("radius %.3f m, depth %.1f m: worst point %.3g m, normal %.3g (inner %.3g)\n",
+                  radius, depth, worst_point, worst_normal, worst_inner_normal);
+    }
+  }
+}
+
 TEST(NormalsMLS, BadInputGivesAnEmptyDenseCloud) {
   NormalCloud out;
   estimateNormalsMLS(nullptr, NormalParams{}, out);
