@@ -257,29 +257,7 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
         return _mm_add_epi32(truncated,
                              _mm_castps_si128(_mm_cmplt_ps(value, _mm_cvtepi32_ps(truncated))));
       };
-      // voxel_key::pack of the kept lanes (coordinates made >= 0, shifted into 64 bits), kEmpty
-      // (all bits set) for the others.
-      const __m128i offset = _mm_set1_epi32(static_cast<int32_t>(voxel_key::kAxisOffset)),
-                    lane_bits = _mm_setr_epi32(1, 2, 4, 8), none = _mm_setzero_si128();
-      const __m128i cx = _mm_add_epi32(floorOf(vx), offset),
-                    cy = _mm_add_epi32(floorOf(vy), offset),
-                    cz = _mm_add_epi32(floorOf(vz), offset);
-      const __m128i kept_mask =
-          _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(kept_lanes), lane_bits), lane_bits);
-      auto packed = [&](__m128i x2, __m128i y2, __m128i z2, __m128i kept2) {  // two 64-bit lanes
-        const __m128i key = _mm_or_si128(_mm_or_si128(_mm_slli_epi64(x2, 2 * voxel_key::kAxisBits),
-                                                      _mm_slli_epi64(y2, voxel_key::kAxisBits)),
-                                         z2);
-        return _mm_or_si128(key, _mm_xor_si128(kept2, _mm_set1_epi32(-1)));
-      };
-      _mm_storeu_si128(
-          reinterpret_cast<__m128i*>(keys + u),
-          packed(_mm_unpacklo_epi32(cx, none), _mm_unpacklo_epi32(cy, none),
-                 _mm_unpacklo_epi32(cz, none), _mm_unpacklo_epi32(kept_mask, kept_mask)));
-      _mm_storeu_si128(
-          reinterpret_cast<__m128i*>(keys + u + 2),
-          packed(_mm_unpackhi_epi32(cx, none), _mm_unpackhi_epi32(cy, none),
-                 _mm_unpackhi_epi32(cz, none), _mm_unpackhi_epi32(kept_mask, kept_mask)));
+      voxel_key::packFour(floorOf(vx), floorOf(vy), floorOf(vz), kept_lanes, keys + u);
     }
     min_tan_x = row_min_tan_x, max_tan_x = row_max_tan_x, min_tan_y = row_min_tan_y;
     max_tan_y = row_max_tan_y, min_z = row_min_z;

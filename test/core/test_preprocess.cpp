@@ -2,6 +2,7 @@
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/parallel.h"
+#include "tabletop_shapes/core/voxel_key.h"
 
 #include <gtest/gtest.h>
 #include <pcl/common/io.h>
@@ -342,3 +343,25 @@ TEST(Preprocess, BuffersShrinkAfterAFrameFarAboveTheUsualSize) {
 
 }  // namespace
 }  // namespace tabletop_shapes
+
+#ifdef __SSE2__
+// The four-pixel keying writes pack()'s keys, and kEmpty for the pixels not kept: negative
+// coordinates, both ends of the packable range, every mask of kept lanes.
+TEST(Preprocess, PackFourGivesPackOfTheKeptLanes) {
+  namespace vk = tabletop_shapes::voxel_key;
+  const int32_t far = static_cast<int32_t>(vk::kAxisOffset - 1);
+  const int32_t xs[4] = {0, -1, far, -far}, ys[4] = {-far, 7, -300, far},
+                zs[4] = {far, -far, 0, 12};
+  for (int kept_lanes = 0; kept_lanes < 16; ++kept_lanes) {
+    uint64_t keys[4];
+    vk::packFour(_mm_setr_epi32(xs[0], xs[1], xs[2], xs[3]),
+                 _mm_setr_epi32(ys[0], ys[1], ys[2], ys[3]),
+                 _mm_setr_epi32(zs[0], zs[1], zs[2], zs[3]), kept_lanes, keys);
+    for (int lane = 0; lane < 4; ++lane) {
+      const uint64_t expected =
+          kept_lanes >> lane & 1 ? vk::pack(xs[lane], ys[lane], zs[lane]) : vk::kEmpty;
+      EXPECT_EQ(keys[lane], expected) << "lanes kept " << kept_lanes << ", lane " << lane;
+    }
+  }
+}
+#endif
