@@ -218,6 +218,40 @@ TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
   }
 }
 
+TEST(GridSearch, NearestKDistancesAmongEqualDistancesAreThoseOfAPairwiseSearch) {
+  // A 5 mm lattice (voxel centres of a flat face) has few distinct distances, each shared by
+  // 4-8 points: the k nearest cut through a ring of equal ones, and many of the candidates fall
+  // into the selection's boundary bin. A stack of k + 4 copies of one point has its k nearest
+  // all at 0 (the selection's bound is 0 there).
+  auto cloud = std::make_shared<Cloud>();
+  for (int i = 0; i < 30; ++i) {
+    for (int j = 0; j < 30; ++j) cloud->push_back(Point(0.005f * i, 0.005f * j, 1.0f));
+  }
+  constexpr int k = 50;
+  for (int copy = 0; copy < k + 4; ++copy) cloud->push_back(Point(0.5f, 0.5f, 1.0f));
+  GridSearch<Point> search(0.025f);
+  search.setInputCloud(cloud);
+  std::vector<int> visits(cloud->size(), 0);
+  search.forEachNearestK(
+      k,
+      [&](int i, const std::vector<float>& squared) {
+        ++visits[i];
+        std::vector<float> expected;
+        const Point& q = (*cloud)[i];
+        for (const Point& p : cloud->points) {
+          const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
+          expected.push_back(dx * dx + dy * dy + dz * dz);
+        }
+        std::sort(expected.begin(), expected.end());
+        expected.resize(k);
+        std::vector<float> found = squared;
+        std::sort(found.begin(), found.end());
+        EXPECT_EQ(found, expected) << "point " << i;
+      },
+      false);
+  for (size_t i = 0; i < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+}
+
 TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
   // Radii of one cell and of several (reach 1 and 3): each pair of points closer than the
   // radius links, whatever cells apart they lie.
