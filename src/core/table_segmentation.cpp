@@ -223,19 +223,22 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
 // operations in its order (Eigen's dot: nx x + (ny y + nz z), then + d), so the same points
 // pass as with signedDistance; a frame's passes over its ~100k points (object points, points
 // below a candidate, the hidden table's) keep a few thousand. Points with a coordinate that is
-// not finite have no finite distance and never pass.
+// not finite have no finite distance and never pass. [first, last): the part of the cloud to
+// look at, all of it by default.
 template <typename Visit>
 void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float high,
-                        bool inclusive, Visit&& visit) {
+                        bool inclusive, Visit&& visit, size_t first = 0,
+                        size_t last = std::numeric_limits<size_t>::max()) {
   auto inBand = [&](float distance) {
     return inclusive ? distance >= low && distance <= high : distance > low && distance < high;
   };
-  size_t i = 0;
+  last = std::min(last, cloud.size());
+  size_t i = first;
 #ifdef __SSE__
   const Float4 nx = broadcast(plane.normal.x()), ny = broadcast(plane.normal.y()),
                nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
   const Float4 lowest = broadcast(low), highest = broadcast(high);
-  for (; i + 4 <= cloud.size(); i += 4) {
+  for (; i + 4 <= last; i += 4) {
     Float4 x, y, z;
     coordinatesOfFour(&cloud[i], x, y, z);
     const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
@@ -246,11 +249,50 @@ void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float
     }
   }
 #endif
-  for (; i < cloud.size(); ++i) {
+  for (; i < last; ++i) {
     if (inBand(plane.signedDistance(cloud[i].getVector3fMap())) && !visit(static_cast<int>(i))) {
       return;
     }
   }
+}
+
+// The points of `cloud` within [low, high] of `plane` (as forEachPointInBand) that keep(i)
+// accepts, in the cloud's order, into `within`: the cloud's parts are searched on all free cores
+// (keep is called concurrently) and their lists joined in order, the list of one pass.
+template <typename Keep>
+void collectInBand(const Cloud& cloud, const Plane& plane, float low, float high, const Keep& keep,
+                   std::vector<int>& within) {
+  within.clear();
+  const size_t parts = std::max(1u, freeWorkerThreads());
+  if (parts == 1) {
+    forEachPointInBand(cloud, plane, low, high, true, [&](int i) {
+      if (keep(i)) within.push_back(i);
+      return true;
+    });
+    return;
+  }
+  std::vector<std::vector<int>> found(parts);
+  parallelFor(
+      parts,
+      [&](size_t part) {
+        // Parts of whole groups of four, so the lanes are those of one pass.
+        auto start = [&](size_t p) {
+          return p == parts ? cloud.size() : cloud.size() * p / parts / 4 * 4;
+        };
+        found[part].reserve((start(part + 1) - start(part)) * 3 / 4);
+        forEachPointInBand(
+            cloud, plane, low, high, true,
+            [&](int i) {
+              if (keep(i)) found[part].push_back(i);
+              return true;
+            },
+            start(part), start(part + 1));
+      },
+      static_cast<unsigned>(parts));
+  size_t total = 0;
+  for (const std::vector<int>& part : found) total += part.size();
+  within.reserve(total);
+  for (const std::vector<int>& part : found) within.insert(within.end(), part.begin(), part.end());
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -1127,15 +1169,16 @@ Candidate onEveryPoint(const Cloud& frame, const Candidate& found, const TablePa
   table.plane = found.plane;
   table.found_before = found.found_before;
   auto collect = [&](const Plane& plane, float half_width, std::vector<int>& within) {
-    within.clear();
-    forEachPointInBand(frame, plane, -half_width, half_width, true, [&](int i) {
-      const Eigen::Vector3f p = frame[i].getVector3fMap();
-      for (const Plane& before : found.found_before) {
-        if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return true;
-      }
-      within.push_back(i);
-      return true;
-    });
+    collectInBand(
+        frame, plane, -half_width, half_width,
+        [&](int i) {
+          const Eigen::Vector3f p = frame[i].getVector3fMap();
+          for (const Plane& before : found.found_before) {
+            if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return false;
+          }
+          return true;
+        },
+        within);
   };
   collect(table.plane, params.distance_threshold, table.inliers);
   refitOnDensestSlab(frame, constraint, params.distance_threshold, collect, table.plane,
