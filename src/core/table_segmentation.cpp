@@ -256,43 +256,45 @@ void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float
   }
 }
 
+// fill(first, last, part) for consecutive parts [first, last) of [0, n) (whole groups of four)
+// on all free cores when n is a frame's worth (a plane search's sample is done on one: its
+// judges run beside it), each part's `part` list joined in order into `joined`: the list one
+// fill(0, n, joined) gives.
+template <typename T, typename Fill>
+void joinedInParts(size_t n, const Fill& fill, std::vector<T>& joined) {
+  constexpr size_t kMinItemsToShare = 40000;
+  joined.clear();
+  const size_t parts = n >= kMinItemsToShare ? std::max(1u, freeWorkerThreads()) : 1;
+  if (parts == 1) {
+    fill(size_t{0}, n, joined);
+    return;
+  }
+  auto start = [&](size_t part) { return part == parts ? n : n * part / parts / 4 * 4; };
+  std::vector<std::vector<T>> filled(parts);
+  parallelFor(
+      parts, [&](size_t part) { fill(start(part), start(part + 1), filled[part]); },
+      static_cast<unsigned>(parts));
+  size_t total = 0;
+  for (const std::vector<T>& part : filled) total += part.size();
+  joined.reserve(total);
+  for (const std::vector<T>& part : filled) joined.insert(joined.end(), part.begin(), part.end());
+}
+
 // The points of `cloud` within [low, high] of `plane` (as forEachPointInBand) that keep(i)
-// accepts, in the cloud's order, into `within`: the cloud's parts are searched on all free cores
-// (keep is called concurrently) and their lists joined in order, the list of one pass.
+// accepts, in the cloud's order, into `within` (keep is called from all free cores).
 template <typename Keep>
 void collectInBand(const Cloud& cloud, const Plane& plane, float low, float high, const Keep& keep,
                    std::vector<int>& within) {
-  within.clear();
-  const size_t parts = std::max(1u, freeWorkerThreads());
-  if (parts == 1) {
-    forEachPointInBand(cloud, plane, low, high, true, [&](int i) {
-      if (keep(i)) within.push_back(i);
-      return true;
-    });
-    return;
-  }
-  std::vector<std::vector<int>> found(parts);
-  parallelFor(
-      parts,
-      [&](size_t part) {
-        // Parts of whole groups of four, so the lanes are those of one pass.
-        auto start = [&](size_t p) {
-          return p == parts ? cloud.size() : cloud.size() * p / parts / 4 * 4;
-        };
-        found[part].reserve((start(part + 1) - start(part)) * 3 / 4);
-        forEachPointInBand(
-            cloud, plane, low, high, true,
-            [&](int i) {
-              if (keep(i)) found[part].push_back(i);
-              return true;
-            },
-            start(part), start(part + 1));
-      },
-      static_cast<unsigned>(parts));
-  size_t total = 0;
-  for (const std::vector<int>& part : found) total += part.size();
-  within.reserve(total);
-  for (const std::vector<int>& part : found) within.insert(within.end(), part.begin(), part.end());
+  auto fill = [&](size_t first, size_t last, std::vector<int>& part) {
+    forEachPointInBand(
+        cloud, plane, low, high, true,
+        [&](int i) {
+          if (keep(i)) part.push_back(i);
+          return true;
+        },
+        first, last);
+  };
+  joinedInParts(cloud.size(), fill, within);
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -347,8 +349,12 @@ template <typename Collect>
 bool refitOnDensestSlab(const Cloud& cloud, const NormalConstraint& constraint, float threshold,
                         const Collect& collect, Plane& plane, std::vector<int>& inliers) {
   std::vector<float> distances;
-  distances.reserve(inliers.size());
-  for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
+  auto fill = [&](size_t first, size_t last, std::vector<float>& part) {
+    part.reserve(last - first);
+    for (size_t k = first; k < last; ++k)
+      part.push_back(plane.signedDistance(cloud[inliers[k]].getVector3fMap()));
+  };
+  joinedInParts(inliers.size(), fill, distances);
   const DensestSlab slab_of_most = densestSlab(distances, kSurfaceSlab);
   if (slab_of_most.count < 3) return false;
   Plane shifted = plane;
@@ -447,12 +453,14 @@ void buildHull(const Cloud& cloud, Candidate& candidate,
   const ExtremeOctagon octagon(inner, 2 * kInsideTolerance);
   std::vector<Eigen::Vector2f> projected;
   auto projectInliers = [&](bool drop_surely_inside) {
-    projected.clear();
-    for (int i : candidate.inliers) {
-      const Eigen::Vector3f p = cloud[i].getVector3fMap();
-      const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-      if (!drop_surely_inside || !octagon.surelyInside(q)) projected.push_back(q);
-    }
+    auto fill = [&](size_t first, size_t last, std::vector<Eigen::Vector2f>& part) {
+      for (size_t k = first; k < last; ++k) {
+        const Eigen::Vector3f p = cloud[candidate.inliers[k]].getVector3fMap();
+        const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+        if (!drop_surely_inside || !octagon.surelyInside(q)) part.push_back(q);
+      }
+    };
+    joinedInParts(candidate.inliers.size(), fill, projected);
   };
   projectInliers(true);
   candidate.hull_2d = convexHull2d(std::move(projected));
