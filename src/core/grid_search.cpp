@@ -60,7 +60,7 @@ struct SelectionBuffers {
 // bin's few values are selected among.
 float smallestValues(const std::vector<float>& values, size_t wanted, float bound,
                      std::vector<float>& smallest, SelectionBuffers& buffers) {
-  constexpr int kBins = 64;
+  constexpr int kBins = 32;
   const size_t n = values.size();
   smallest.resize(wanted);
   const float scale = kBins / bound;
@@ -73,11 +73,12 @@ float smallestValues(const std::vector<float>& values, size_t wanted, float boun
   }
   if (buffers.bins.size() < n) buffers.bins.resize(n), buffers.boundary.resize(n);
   uint8_t* bins = buffers.bins.data();
+  // Two loops: the first one vectorised.
+  const float* v = values.data();
+  for (size_t j = 0; j < n; ++j)
+    bins[j] = static_cast<uint8_t>(std::min(v[j] * scale, kBins - 1.0f));
   uint32_t counts[kBins] = {};
-  for (size_t j = 0; j < n; ++j) {
-    bins[j] = static_cast<uint8_t>(std::min(values[j] * scale, kBins - 1.0f));
-    ++counts[bins[j]];
-  }
+  for (size_t j = 0; j < n; ++j) ++counts[bins[j]];
   uint8_t bin = 0;
   size_t below = 0;
   while (below + counts[bin] < wanted) below += counts[bin++];
