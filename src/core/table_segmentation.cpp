@@ -570,26 +570,41 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   bool span_computed = false;
   std::vector<int> edge_indices;
   std::vector<int> reaching_the_band;  // inner points near enough to link to the band
-  forEachPointInBand(
-      cloud, candidate.plane, params.min_height, params.max_height, true, [&](int i) {
-        const Eigen::Vector3f p = cloud[i].getVector3fMap();
-        const float height = candidate.plane.signedDistance(p);
-        const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-        const float inside = candidate.hull_edges.insideDistance(q);
-        if (inside >= params.hull_margin) {
-          if (inside < params.hull_margin + kEdgeLinkDistance) reaching_the_band.push_back(i);
-          indices.push_back(i);
-        } else if (inside >= 0.0f) {
-          edge_indices.push_back(i);
-        } else if (eye_height > 0.0f) {
-          if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
-          if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
-            reaching_the_band.push_back(i);
-            indices.push_back(i);
-          }
-        }
-        return true;
-      });
+  // The points in the height band with their distance inside the hull (the costly part: a
+  // frame's on all free cores), in the cloud's order.
+  struct InBand {
+    int index;
+    float inside;
+  };
+  std::vector<InBand> in_band;
+  auto fill = [&](size_t first, size_t last, std::vector<InBand>& part) {
+    forEachPointInBand(
+        cloud, candidate.plane, params.min_height, params.max_height, true,
+        [&](int i) {
+          const Eigen::Vector3f p = cloud[i].getVector3fMap();
+          const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+          part.push_back({i, candidate.hull_edges.insideDistance(q)});
+          return true;
+        },
+        first, last);
+  };
+  joinedInParts(cloud.size(), fill, in_band);
+  for (const auto& [i, inside] : in_band) {
+    if (inside >= params.hull_margin) {
+      if (inside < params.hull_margin + kEdgeLinkDistance) reaching_the_band.push_back(i);
+      indices.push_back(i);
+    } else if (inside >= 0.0f) {
+      edge_indices.push_back(i);
+    } else if (eye_height > 0.0f) {
+      if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
+      const Eigen::Vector3f p = cloud[i].getVector3fMap();
+      const float height = candidate.plane.signedDistance(p);
+      if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
+        reaching_the_band.push_back(i);
+        indices.push_back(i);
+      }
+    }
+  }
   if (edge_indices.empty() || reaching_the_band.empty()) return;
 
   // Grow from the inner points into the edge band.
