@@ -180,6 +180,24 @@ TEST(GridSearch, NearestKIndicesOnSeveralThreadsAreThoseOfOnePass) {
   }
 }
 
+namespace {
+
+// The k smallest squared distances from point i to the cloud's finite points (itself
+// included), ascending.
+std::vector<float> nearestSquaredByPairs(const Cloud& cloud, size_t i, int k) {
+  std::vector<float> squared;
+  const Point& q = cloud[i];
+  for (const Point& p : cloud.points) {
+    const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
+    if (std::isfinite(dx)) squared.push_back(dx * dx + dy * dy + dz * dz);
+  }
+  std::sort(squared.begin(), squared.end());
+  squared.resize(k);
+  return squared;
+}
+
+}  // namespace
+
 TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
   // 3 cm cells as the outlier removal uses them; ascending, and in any order (the same
   // multiset): the surface's points bound their selection by their cell neighbour's k-th
@@ -195,14 +213,7 @@ TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
         k,
         [&](int i, const std::vector<float>& squared) {
           ++visits[i];
-          std::vector<float> expected;
-          const Point& q = (*cloud)[i];
-          for (const Point& p : cloud->points) {
-            const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
-            if (std::isfinite(dx)) expected.push_back(dx * dx + dy * dy + dz * dz);
-          }
-          std::sort(expected.begin(), expected.end());
-          expected.resize(k);
+          const std::vector<float> expected = nearestSquaredByPairs(*cloud, i, k);
           std::vector<float> found = squared;
           if (ascending) {
             EXPECT_TRUE(std::is_sorted(found.begin(), found.end())) << "point " << i;
@@ -236,17 +247,9 @@ TEST(GridSearch, NearestKDistancesAmongEqualDistancesAreThoseOfAPairwiseSearch) 
       k,
       [&](int i, const std::vector<float>& squared) {
         ++visits[i];
-        std::vector<float> expected;
-        const Point& q = (*cloud)[i];
-        for (const Point& p : cloud->points) {
-          const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
-          expected.push_back(dx * dx + dy * dy + dz * dz);
-        }
-        std::sort(expected.begin(), expected.end());
-        expected.resize(k);
         std::vector<float> found = squared;
         std::sort(found.begin(), found.end());
-        EXPECT_EQ(found, expected) << "point " << i;
+        EXPECT_EQ(found, nearestSquaredByPairs(*cloud, i, k)) << "point " << i;
       },
       false);
   for (size_t i = 0; i < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
