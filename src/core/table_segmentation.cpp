@@ -223,22 +223,19 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
 // operations in its order (Eigen's dot: nx x + (ny y + nz z), then + d), so the same points
 // pass as with signedDistance; a frame's passes over its ~100k points (object points, points
 // below a candidate, the hidden table's) keep a few thousand. Points with a coordinate that is
-// not finite have no finite distance and never pass. [first, last): the part of the cloud to
-// look at, all of it by default.
+// not finite have no finite distance and never pass.
 template <typename Visit>
 void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float high,
-                        bool inclusive, Visit&& visit, size_t first = 0,
-                        size_t last = std::numeric_limits<size_t>::max()) {
+                        bool inclusive, Visit&& visit) {
   auto inBand = [&](float distance) {
     return inclusive ? distance >= low && distance <= high : distance > low && distance < high;
   };
-  last = std::min(last, cloud.size());
-  size_t i = first;
+  size_t i = 0;
 #ifdef __SSE__
   const Float4 nx = broadcast(plane.normal.x()), ny = broadcast(plane.normal.y()),
                nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
   const Float4 lowest = broadcast(low), highest = broadcast(high);
-  for (; i + 4 <= last; i += 4) {
+  for (; i + 4 <= cloud.size(); i += 4) {
     Float4 x, y, z;
     coordinatesOfFour(&cloud[i], x, y, z);
     const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
@@ -249,52 +246,11 @@ void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float
     }
   }
 #endif
-  for (; i < last; ++i) {
+  for (; i < cloud.size(); ++i) {
     if (inBand(plane.signedDistance(cloud[i].getVector3fMap())) && !visit(static_cast<int>(i))) {
       return;
     }
   }
-}
-
-// fill(first, last, part) for consecutive parts [first, last) of [0, n) (whole groups of four)
-// on all free cores when n is a frame's worth (a plane search's sample is done on one: its
-// judges run beside it), each part's `part` list joined in order into `joined`: the list one
-// fill(0, n, joined) gives.
-template <typename T, typename Fill>
-void joinedInParts(size_t n, const Fill& fill, std::vector<T>& joined) {
-  constexpr size_t kMinItemsToShare = 40000;
-  joined.clear();
-  const size_t parts = n >= kMinItemsToShare ? std::max(1u, freeWorkerThreads()) : 1;
-  if (parts == 1) {
-    fill(size_t{0}, n, joined);
-    return;
-  }
-  auto start = [&](size_t part) { return part == parts ? n : n * part / parts / 4 * 4; };
-  std::vector<std::vector<T>> filled(parts);
-  parallelFor(
-      parts, [&](size_t part) { fill(start(part), start(part + 1), filled[part]); },
-      static_cast<unsigned>(parts));
-  size_t total = 0;
-  for (const std::vector<T>& part : filled) total += part.size();
-  joined.reserve(total);
-  for (const std::vector<T>& part : filled) joined.insert(joined.end(), part.begin(), part.end());
-}
-
-// The points of `cloud` within [low, high] of `plane` (as forEachPointInBand) that keep(i)
-// accepts, in the cloud's order, into `within` (keep is called from all free cores).
-template <typename Keep>
-void collectInBand(const Cloud& cloud, const Plane& plane, float low, float high, const Keep& keep,
-                   std::vector<int>& within) {
-  auto fill = [&](size_t first, size_t last, std::vector<int>& part) {
-    forEachPointInBand(
-        cloud, plane, low, high, true,
-        [&](int i) {
-          if (keep(i)) part.push_back(i);
-          return true;
-        },
-        first, last);
-  };
-  joinedInParts(cloud.size(), fill, within);
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -349,12 +305,8 @@ template <typename Collect>
 bool refitOnDensestSlab(const Cloud& cloud, const NormalConstraint& constraint, float threshold,
                         const Collect& collect, Plane& plane, std::vector<int>& inliers) {
   std::vector<float> distances;
-  auto fill = [&](size_t first, size_t last, std::vector<float>& part) {
-    part.reserve(last - first);
-    for (size_t k = first; k < last; ++k)
-      part.push_back(plane.signedDistance(cloud[inliers[k]].getVector3fMap()));
-  };
-  joinedInParts(inliers.size(), fill, distances);
+  distances.reserve(inliers.size());
+  for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
   const DensestSlab slab_of_most = densestSlab(distances, kSurfaceSlab);
   if (slab_of_most.count < 3) return false;
   Plane shifted = plane;
@@ -453,14 +405,12 @@ void buildHull(const Cloud& cloud, Candidate& candidate,
   const ExtremeOctagon octagon(inner, 2 * kInsideTolerance);
   std::vector<Eigen::Vector2f> projected;
   auto projectInliers = [&](bool drop_surely_inside) {
-    auto fill = [&](size_t first, size_t last, std::vector<Eigen::Vector2f>& part) {
-      for (size_t k = first; k < last; ++k) {
-        const Eigen::Vector3f p = cloud[candidate.inliers[k]].getVector3fMap();
-        const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-        if (!drop_surely_inside || !octagon.surelyInside(q)) part.push_back(q);
-      }
-    };
-    joinedInParts(candidate.inliers.size(), fill, projected);
+    projected.clear();
+    for (int i : candidate.inliers) {
+      const Eigen::Vector3f p = cloud[i].getVector3fMap();
+      const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+      if (!drop_surely_inside || !octagon.surelyInside(q)) projected.push_back(q);
+    }
   };
   projectInliers(true);
   candidate.hull_2d = convexHull2d(std::move(projected));
@@ -570,41 +520,26 @@ void objectIndices(const Cloud& cloud, const Candidate& candidate, const TablePa
   bool span_computed = false;
   std::vector<int> edge_indices;
   std::vector<int> reaching_the_band;  // inner points near enough to link to the band
-  // The points in the height band with their distance inside the hull (the costly part: a
-  // frame's on all free cores), in the cloud's order.
-  struct InBand {
-    int index;
-    float inside;
-  };
-  std::vector<InBand> in_band;
-  auto fill = [&](size_t first, size_t last, std::vector<InBand>& part) {
-    forEachPointInBand(
-        cloud, candidate.plane, params.min_height, params.max_height, true,
-        [&](int i) {
-          const Eigen::Vector3f p = cloud[i].getVector3fMap();
-          const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
-          part.push_back({i, candidate.hull_edges.insideDistance(q)});
-          return true;
-        },
-        first, last);
-  };
-  joinedInParts(cloud.size(), fill, in_band);
-  for (const auto& [i, inside] : in_band) {
-    if (inside >= params.hull_margin) {
-      if (inside < params.hull_margin + kEdgeLinkDistance) reaching_the_band.push_back(i);
-      indices.push_back(i);
-    } else if (inside >= 0.0f) {
-      edge_indices.push_back(i);
-    } else if (eye_height > 0.0f) {
-      if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
-      const Eigen::Vector3f p = cloud[i].getVector3fMap();
-      const float height = candidate.plane.signedDistance(p);
-      if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
-        reaching_the_band.push_back(i);
-        indices.push_back(i);
-      }
-    }
-  }
+  forEachPointInBand(
+      cloud, candidate.plane, params.min_height, params.max_height, true, [&](int i) {
+        const Eigen::Vector3f p = cloud[i].getVector3fMap();
+        const float height = candidate.plane.signedDistance(p);
+        const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+        const float inside = candidate.hull_edges.insideDistance(q);
+        if (inside >= params.hull_margin) {
+          if (inside < params.hull_margin + kEdgeLinkDistance) reaching_the_band.push_back(i);
+          indices.push_back(i);
+        } else if (inside >= 0.0f) {
+          edge_indices.push_back(i);
+        } else if (eye_height > 0.0f) {
+          if (!span_computed) span = imageSpanOf(cloud), span_computed = true;
+          if (span.known && standsBeyondTheImage(p, height, candidate, eye, eye_height, span)) {
+            reaching_the_band.push_back(i);
+            indices.push_back(i);
+          }
+        }
+        return true;
+      });
   if (edge_indices.empty() || reaching_the_band.empty()) return;
 
   // Grow from the inner points into the edge band.
@@ -1192,16 +1127,15 @@ Candidate onEveryPoint(const Cloud& frame, const Candidate& found, const TablePa
   table.plane = found.plane;
   table.found_before = found.found_before;
   auto collect = [&](const Plane& plane, float half_width, std::vector<int>& within) {
-    collectInBand(
-        frame, plane, -half_width, half_width,
-        [&](int i) {
-          const Eigen::Vector3f p = frame[i].getVector3fMap();
-          for (const Plane& before : found.found_before) {
-            if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return false;
-          }
-          return true;
-        },
-        within);
+    within.clear();
+    forEachPointInBand(frame, plane, -half_width, half_width, true, [&](int i) {
+      const Eigen::Vector3f p = frame[i].getVector3fMap();
+      for (const Plane& before : found.found_before) {
+        if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return true;
+      }
+      within.push_back(i);
+      return true;
+    });
   };
   collect(table.plane, params.distance_threshold, table.inliers);
   refitOnDensestSlab(frame, constraint, params.distance_threshold, collect, table.plane,
