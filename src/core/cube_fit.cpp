@@ -545,20 +545,53 @@ float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point) {
   return -outside.maxCoeff();
 }
 
-float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point) {
-  const Eigen::Vector3f local = box.orientation.conjugate() * (point - box.center);
-  const Eigen::Vector3f camera = box.orientation.conjugate() * (-box.center);
-  const Eigen::Vector3f half = 0.5f * box.dimensions;
-  float distance = std::numeric_limits<float>::infinity();
-  for (int axis = 0; axis < 3; ++axis) {
-    for (float side : {-1.0f, 1.0f}) {
-      if (side * camera[axis] <= half[axis]) continue;  // the face looks away from the camera
-      Eigen::Vector3f nearest = local.cwiseMax(-half).cwiseMin(half);
-      nearest[axis] = side * half[axis];
-      distance = std::min(distance, (local - nearest).norm());
+namespace {
+
+// The faces of a box the camera (at the origin) sees, worked out once for all the points: the
+// box's frame and the visible faces' (axis, side).
+struct VisibleBoxFaces {
+  explicit VisibleBoxFaces(const ShapeFit& box)
+      : box(box), to_box(box.orientation.conjugate()), half(0.5f * box.dimensions) {
+    const Eigen::Vector3f camera = to_box * (-box.center);
+    for (int axis = 0; axis < 3; ++axis) {
+      for (float side : {-1.0f, 1.0f}) {
+        if (!(side * camera[axis] <= half[axis])) faces[count++] = {axis, side};  // NaN: as before
+      }
     }
   }
-  return std::isfinite(distance) ? distance : distanceToBox(box, point);
+  float distance(const Eigen::Vector3f& point) const {
+    const Eigen::Vector3f local = to_box * (point - box.center);
+    float distance = std::numeric_limits<float>::infinity();
+    for (int face = 0; face < count; ++face) {
+      Eigen::Vector3f nearest = local.cwiseMax(-half).cwiseMin(half);
+      nearest[faces[face].axis] = faces[face].side * half[faces[face].axis];
+      distance = std::min(distance, (local - nearest).norm());
+    }
+    return std::isfinite(distance) ? distance : distanceToBox(box, point);
+  }
+
+  const ShapeFit& box;
+  const Eigen::Quaternionf to_box;
+  const Eigen::Vector3f half;
+  struct Face {
+    int axis;
+    float side;
+  } faces[6] = {};
+  int count = 0;
+};
+
+}  // namespace
+
+float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point) {
+  return VisibleBoxFaces(box).distance(point);
+}
+
+void distancesToVisibleBoxSurface(const ShapeFit& box, const NormalCloud& points,
+                                  std::vector<float>& distances) {
+  const VisibleBoxFaces visible(box);
+  distances.clear();
+  distances.reserve(points.size());
+  for (const auto& p : points.points) distances.push_back(visible.distance(p.getVector3fMap()));
 }
 
 }  // namespace tabletop_shapes

@@ -10,9 +10,13 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -57,36 +61,23 @@ double rms(const Eigen::VectorXd& residuals) {
   return residuals.size() > 0 ? std::sqrt(residuals.squaredNorm() / residuals.size()) : 0.0;
 }
 
-// Levenberg-Marquardt on sum r_i(x)^2. `evaluate(x, residuals, jacobian)` fills both
-// (jacobian may be nullptr). Returns the parameters reached; stops after max_iterations or
+// Levenberg-Marquardt on sum r_i(x)^2. `model.normalEquations(x, jtj, gradient)` gives the
+// sum at x, J^T J and J^T r. Returns the parameters reached; stops after max_iterations or
 // when a step moves x by less than kConvergedStep: parameters are metres (and a slope). The
 // circle and cone fits converge linearly, steps shrinking ~5x each (their residuals are not
 // small), so a micrometre leaves ~0.25 um to go, 400 times below the 0.1 mm the figures are
-// reported to, and saves the last ~4 of ~10 iterations (each a Jacobian over all the points).
+// reported to, and saves the last ~4 of ~10 iterations (each a pass over all the points).
 // Shared by the circle and the cone fit.
-template <typename Evaluate>
-Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, int n_residuals,
-                                   int max_iterations) {
-  Eigen::VectorXd residuals(n_residuals), trial_residuals(n_residuals);
-  Eigen::MatrixXd jacobian(n_residuals, x.size()), trial_jacobian(n_residuals, x.size());
-  // The small systems' storage, kept across iterations and trials (their allocations cost as
-  // much as the products of a few hundred residuals).
-  Eigen::MatrixXd jtj(x.size(), x.size()), damped(x.size(), x.size());
-  Eigen::VectorXd gradient(x.size()), step(x.size()), trial(x.size());
+template <typename Model>
+Eigen::VectorXd levenbergMarquardt(const Model& model, Eigen::VectorXd x, int max_iterations) {
+  // The small systems' storage, kept across iterations and trials.
+  Eigen::MatrixXd jtj(x.size(), x.size()), trial_jtj(x.size(), x.size()),
+      damped(x.size(), x.size());
+  Eigen::VectorXd gradient(x.size()), trial_gradient(x.size()), step(x.size()), trial(x.size());
   Eigen::LDLT<Eigen::MatrixXd> solver(x.size());
-  evaluate(x, residuals, &jacobian);
-  double cost = residuals.squaredNorm();
+  double cost = model.normalEquations(x, jtj, gradient);
   double lambda = 1e-3;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    // Each entry one dot product of two columns: with 3-4 parameters and ~10^3 residuals,
-    // Eigen's blocked matrix product spent most of its instructions packing the operands. The
-    // lower triangle mirrors the upper one (the same products, summed in the same order).
-    for (Eigen::Index row = 0; row < x.size(); ++row) {
-      for (Eigen::Index column = row; column < x.size(); ++column) {
-        jtj(row, column) = jtj(column, row) = jacobian.col(row).dot(jacobian.col(column));
-      }
-    }
-    gradient.noalias() = jacobian.transpose().lazyProduct(residuals);
     bool improved = false;
     while (lambda < 1e12) {
       damped = jtj;
@@ -94,16 +85,15 @@ Eigen::VectorXd levenbergMarquardt(const Evaluate& evaluate, Eigen::VectorXd x, 
       step = solver.compute(damped).solve(-gradient);
       if (!step.allFinite()) break;
       trial = x + step;
-      // With its Jacobian: most trials are taken (~4 in 5), and the Jacobian costs less than
-      // evaluating the taken point's residuals again.
-      evaluate(trial, trial_residuals, &trial_jacobian);
-      const double trial_cost = trial_residuals.squaredNorm();
+      // With its normal equations: most trials are taken (~4 in 5), and they cost little more
+      // than the sum alone.
+      const double trial_cost = model.normalEquations(trial, trial_jtj, trial_gradient);
       if (std::isfinite(trial_cost) && trial_cost <= cost) {
         const bool converged = step.norm() <= kConvergedStep * (1.0 + x.norm());
         x.swap(trial);
         cost = trial_cost;
-        residuals.swap(trial_residuals);
-        jacobian.swap(trial_jacobian);
+        jtj.swap(trial_jtj);
+        gradient.swap(trial_gradient);
         lambda = std::max(lambda * 0.1, 1e-12);
         improved = !converged;
         break;
@@ -143,9 +133,8 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
   solution.inliers = Eigen::VectorXd::Ones(n);
   solution.residuals.resize(n);
   for (int round = 0; round <= kTrimRounds; ++round) {
-    solution.x =
-        levenbergMarquardt(weighted(model, solution.inliers), solution.x, n, max_iterations);
-    model(solution.x, solution.residuals, nullptr);
+    solution.x = levenbergMarquardt(weighted(model, solution.inliers), solution.x, max_iterations);
+    model(solution.x, solution.residuals);
     if (round == kTrimRounds) break;
     std::vector<double> magnitudes(n);
     for (int i = 0; i < n; ++i) magnitudes[i] = std::abs(solution.residuals[i]);
@@ -164,84 +153,156 @@ TrimmedSolution trimmedLeastSquares(const Residuals& model, const Eigen::VectorX
   return solution;
 }
 
-// Geometric residuals |p - c| - r(h) of points on a round wall and their Jacobian: without
-// heights a circle, parameters (cx, cy, r); with them a cone, (cx, cy, r0, s), r(h) = r0 + s h.
-// With `weights`, each residual and its Jacobian row times its weight.
+using DoublePair = double __attribute__((vector_size(16)));
+struct RootOfPair {
+  static DoublePair of(DoublePair value) {
+#ifdef __SSE2__
+    return (DoublePair)_mm_sqrt_pd((__m128d)value);  // correctly rounded, as std::sqrt
+#else
+    return DoublePair{std::sqrt(value[0]), std::sqrt(value[1])};
+#endif
+  }
+};
+#if defined(__x86_64__) && defined(__GNUC__)
+#define TABLETOP_SHAPES_FOUR_DOUBLES 1
+// Lanes of four doubles are passed only within AVX2 functions and always-inlined ones: GCC's
+// note that passing them without AVX changes the ABI does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+using DoubleQuad = double __attribute__((vector_size(32)));
+struct RootOfQuad {
+  __attribute__((target("avx2"))) static DoubleQuad of(DoubleQuad value) {
+    return (DoubleQuad)_mm256_sqrt_pd((__m256d)value);
+  }
+};
+bool hasFourDoubleLanes() {
+  static const bool has_avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has_avx2;
+}
+#endif
+
+// Geometric residuals |p - c| - r(h) of points on a round wall: without heights a circle,
+// parameters (cx, cy, r); with them a cone, (cx, cy, r0, s), r(h) = r0 + s h. With `weights`,
+// each residual and its Jacobian row times its weight.
 struct RoundWallResiduals {
   const std::vector<Vec2d>& points;
   const std::vector<double>* heights = nullptr;
   const Eigen::VectorXd* weights = nullptr;
-  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals,
-                  Eigen::MatrixXd* jacobian) const {
-    double* const column[4] = {jacobian ? jacobian->col(0).data() : nullptr,
-                               jacobian ? jacobian->col(1).data() : nullptr,
-                               jacobian ? jacobian->col(2).data() : nullptr,
-                               jacobian && heights ? jacobian->col(3).data() : nullptr};
-    size_t i = 0;
-#ifdef __SSE2__
-    // The model's options chosen once, outside the loop over the points.
-    if (heights) {
-      i = weights ? evaluatePairs<true, true>(x, residuals.data(), column)
-                  : evaluatePairs<true, false>(x, residuals.data(), column);
-    } else {
-      i = weights ? evaluatePairs<false, true>(x, residuals.data(), column)
-                  : evaluatePairs<false, false>(x, residuals.data(), column);
-    }
-#endif
+
+  // The residuals at x.
+  void operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
     const Vec2d centre(x[0], x[1]);
-    for (; i < points.size(); ++i) {
-      const Vec2d offset = points[i] - centre;
-      const double distance = offset.norm();
+    for (size_t i = 0; i < points.size(); ++i) {
+      const double distance = (points[i] - centre).norm();
       const double height = heights ? (*heights)[i] : 0.0;
       const double weight = weights ? (*weights)[i] : 1.0;
       residuals[i] = (distance - (heights ? x[2] + x[3] * height : x[2])) * weight;
-      if (column[0]) {
-        // At the centre the direction is undefined; any unit vector keeps J finite.
-        const Vec2d direction = distance > 1e-12 ? Vec2d(offset / distance) : Vec2d(1.0, 0.0);
-        column[0][i] = -direction.x() * weight;
-        column[1][i] = -direction.y() * weight;
-        column[2][i] = -1.0 * weight;
-        if (column[3]) column[3][i] = -height * weight;
-      }
     }
   }
 
-#ifdef __SSE2__
-  // The loop above two points at a time (Levenberg-Marquardt spends most of its instructions
-  // here), each lane with its double operations in its order: the same bits, as SSE2's root
-  // and division are correctly rounded like std::sqrt and /. Returns the points done.
-  template <bool kHeights, bool kWeights>
-  size_t evaluatePairs(const Eigen::VectorXd& x, double* residuals, double* const column[4]) const {
-    const __m128d cx = _mm_set1_pd(x[0]), cy = _mm_set1_pd(x[1]), r0 = _mm_set1_pd(x[2]);
-    const __m128d slope = _mm_set1_pd(kHeights ? x[3] : 0.0);
-    const __m128d one = _mm_set1_pd(1.0), tiny = _mm_set1_pd(1e-12), sign = _mm_set1_pd(-0.0);
-    const double* const height_of = kHeights ? heights->data() : nullptr;
-    const double* const weight_of = kWeights ? weights->data() : nullptr;
-    const size_t pairs_end = points.size() & ~size_t{1};
-    size_t i = 0;
-    for (; i < pairs_end; i += 2) {
-      const __m128d first = _mm_loadu_pd(points[i].data());
-      const __m128d second = _mm_loadu_pd(points[i + 1].data());
-      const __m128d dx = _mm_sub_pd(_mm_unpacklo_pd(first, second), cx);
-      const __m128d dy = _mm_sub_pd(_mm_unpackhi_pd(first, second), cy);
-      const __m128d distance = _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)));
-      const __m128d height = kHeights ? _mm_loadu_pd(height_of + i) : _mm_setzero_pd();
-      const __m128d weight = kWeights ? _mm_loadu_pd(weight_of + i) : one;
-      const __m128d radius = kHeights ? _mm_add_pd(r0, _mm_mul_pd(slope, height)) : r0;
-      _mm_storeu_pd(residuals + i, _mm_mul_pd(_mm_sub_pd(distance, radius), weight));
-      if (!column[0]) continue;
-      const __m128d away = _mm_cmpgt_pd(distance, tiny);  // false for NaN, as the scalar test
-      const __m128d ux =
-          _mm_or_pd(_mm_and_pd(away, _mm_div_pd(dx, distance)), _mm_andnot_pd(away, one));
-      const __m128d uy = _mm_and_pd(away, _mm_div_pd(dy, distance));
-      _mm_storeu_pd(column[0] + i, _mm_mul_pd(_mm_xor_pd(ux, sign), weight));
-      _mm_storeu_pd(column[1] + i, _mm_mul_pd(_mm_xor_pd(uy, sign), weight));
-      _mm_storeu_pd(column[2] + i, _mm_mul_pd(_mm_xor_pd(one, sign), weight));
-      if (kHeights) _mm_storeu_pd(column[3] + i, _mm_mul_pd(_mm_xor_pd(height, sign), weight));
-    }
-    return i;
+  // Levenberg-Marquardt's normal equations at x, in one pass over the points without storing
+  // the residuals or the Jacobian (Levenberg-Marquardt spent most of its instructions writing
+  // and then reading them): J^T J in `jtj`, J^T r in `gradient`; returns r^T r. Four points at a
+  // time where the CPU has AVX2, else two.
+  double normalEquations(const Eigen::VectorXd& x, Eigen::MatrixXd& jtj,
+                         Eigen::VectorXd& gradient) const {
+#ifdef TABLETOP_SHAPES_FOUR_DOUBLES
+    if (hasFourDoubleLanes()) return normalEquationsInFourLanes(x, jtj, gradient);
+#endif
+    return withOptions<DoublePair, RootOfPair>(x, jtj, gradient);
+  }
+
+ private:
+#ifdef TABLETOP_SHAPES_FOUR_DOUBLES
+  __attribute__((target("avx2"))) double normalEquationsInFourLanes(
+      const Eigen::VectorXd& x, Eigen::MatrixXd& jtj, Eigen::VectorXd& gradient) const {
+    return withOptions<DoubleQuad, RootOfQuad>(x, jtj, gradient);
   }
 #endif
+
+  // The model's options chosen once, outside the loop over the points.
+  template <typename Doubles, typename Root>
+  [[gnu::always_inline]] double withOptions(const Eigen::VectorXd& x, Eigen::MatrixXd& jtj,
+                                            Eigen::VectorXd& gradient) const {
+    if (heights) {
+      return weights ? sumsInLanes<Doubles, Root, true, true>(x, jtj, gradient)
+                     : sumsInLanes<Doubles, Root, true, false>(x, jtj, gradient);
+    }
+    return weights ? sumsInLanes<Doubles, Root, false, true>(x, jtj, gradient)
+                   : sumsInLanes<Doubles, Root, false, false>(x, jtj, gradient);
+  }
+
+  // normalEquations on lanes of Doubles, one point per lane; the sums' lanes added at the end.
+  // At the centre the direction is undefined; any unit vector keeps J finite.
+  template <typename Doubles, typename Root, bool kHeights, bool kWeights>
+  [[gnu::always_inline]] double sumsInLanes(const Eigen::VectorXd& x, Eigen::MatrixXd& jtj,
+                                            Eigen::VectorXd& gradient) const {
+    constexpr int kLanes = sizeof(Doubles) / sizeof(double);
+    constexpr int kParameters = kHeights ? 4 : 3;
+    constexpr int kProducts = kParameters * (kParameters + 1) / 2;
+    const Doubles cx = Doubles{} + x[0], cy = Doubles{} + x[1], r0 = Doubles{} + x[2];
+    const Doubles slope = Doubles{} + (kHeights ? x[3] : 0.0);
+    const Doubles zero = {}, one = zero + 1.0, tiny = zero + 1e-12;
+    Doubles products[kProducts] = {}, along[kParameters] = {}, squares = {};
+    // One lane per point; a lane of weight 0 (beyond the last point) adds nothing.
+    auto add = [&](Doubles px, Doubles py, Doubles height, Doubles weight)
+        __attribute__((always_inline)) {
+      const Doubles dx = px - cx, dy = py - cy;
+      const Doubles distance = Root::of(dx * dx + dy * dy);
+      const Doubles residual = (distance - (kHeights ? r0 + slope * height : r0)) * weight;
+      const auto away = distance > tiny;  // false for NaN, as `distance > 1e-12`
+      const Doubles row[4] = {-(away ? dx / distance : one) * weight,
+                              -(away ? dy / distance : zero) * weight, -weight, -height * weight};
+      int product = 0;
+#pragma GCC unroll 4
+      for (int a = 0; a < kParameters; ++a) {
+#pragma GCC unroll 4
+        for (int b = a; b < kParameters; ++b) products[product++] += row[a] * row[b];
+        along[a] += row[a] * residual;
+      }
+      squares += residual * residual;
+    };
+    const size_t n = points.size(), whole = n - n % kLanes;
+    const double* coordinates = points.empty() ? nullptr : points.front().data();
+    for (size_t i = 0; i < whole; i += kLanes) {
+      Doubles first, second;  // x y of the lanes' points, interleaved
+      std::memcpy(&first, coordinates + 2 * i, sizeof first);
+      std::memcpy(&second, coordinates + 2 * i + kLanes, sizeof second);
+      Doubles px, py, height = zero, weight = one;
+      if constexpr (kLanes == 2) {
+        px = __builtin_shufflevector(first, second, 0, 2);
+        py = __builtin_shufflevector(first, second, 1, 3);
+      } else {
+        px = __builtin_shufflevector(first, second, 0, 2, 4, 6);
+        py = __builtin_shufflevector(first, second, 1, 3, 5, 7);
+      }
+      if (kHeights) std::memcpy(&height, heights->data() + i, sizeof height);
+      if (kWeights) std::memcpy(&weight, weights->data() + i, sizeof weight);
+      add(px, py, height, weight);
+    }
+    if (whole < n) {
+      Doubles px = cx + 1.0, py = cy, height = zero, weight = zero;
+      for (size_t i = whole; i < n; ++i) {
+        px[i - whole] = points[i].x(), py[i - whole] = points[i].y();
+        if (kHeights) height[i - whole] = (*heights)[i];
+        weight[i - whole] = kWeights ? (*weights)[i] : 1.0;
+      }
+      add(px, py, height, weight);
+    }
+    auto sumOf = [](Doubles lanes) {
+      double sum = lanes[0];
+      for (int lane = 1; lane < kLanes; ++lane) sum += lanes[lane];
+      return sum;
+    };
+    int product = 0;
+    for (int a = 0; a < kParameters; ++a) {
+      for (int b = a; b < kParameters; ++b) jtj(a, b) = jtj(b, a) = sumOf(products[product++]);
+      gradient[a] = sumOf(along[a]);
+    }
+    return sumOf(squares);
+  }
 };
 
 std::vector<Vec2d> toDouble(const std::vector<Eigen::Vector2f>& points) {
@@ -299,7 +360,7 @@ Circle algebraicCircle(const std::vector<Vec2d>& points) {
   const double radius = scale * std::sqrt(radius_squared);
 
   Eigen::VectorXd residuals(points.size());
-  RoundWallResiduals{points}(Eigen::Vector3d(centre.x(), centre.y(), radius), residuals, nullptr);
+  RoundWallResiduals{points}(Eigen::Vector3d(centre.x(), centre.y(), radius), residuals);
   circle.center = centre.cast<float>();
   circle.radius = static_cast<float>(radius);
   circle.rmse = static_cast<float>(rms(residuals));
@@ -313,9 +374,9 @@ Circle geometricCircle(const std::vector<Vec2d>& points, const Circle& initial,
   if (!start.ok || points.size() < 3) return Circle{};
   const Eigen::VectorXd x = levenbergMarquardt(
       RoundWallResiduals{points}, Eigen::Vector3d(start.center.x(), start.center.y(), start.radius),
-      points.size(), std::max(0, max_iterations));
+      std::max(0, max_iterations));
   Eigen::VectorXd residuals(points.size());
-  RoundWallResiduals{points}(x, residuals, nullptr);
+  RoundWallResiduals{points}(x, residuals);
   Circle circle;
   circle.center = Vec2d(x[0], x[1]).cast<float>();
   circle.radius = static_cast<float>(std::abs(x[2]));
@@ -505,17 +566,17 @@ ConeSolution solveCone(const RoundObjectPoints& split, const Circle& cylinder, i
   solution.x = trimmed.x;
   solution.rmse = trimmed.rmse;
   solution.points = trimmed.inlier_count;
-  Eigen::VectorXd residuals(n);
-  Eigen::MatrixXd jacobian(n, 4);
-  weighted(residual_model, trimmed.inliers)(trimmed.x, residuals, &jacobian);
+  Eigen::MatrixXd jtj(4, 4);
+  Eigen::VectorXd gradient(4);
+  const double squares =
+      weighted(residual_model, trimmed.inliers).normalEquations(trimmed.x, jtj, gradient);
   // Covariance of the estimate on the inliers: sigma^2 (J^T J)^-1, sigma^2 = SSR / (m - 4).
   // Residuals of neighbouring points are correlated (voxel grid, MLS smoothing), so this is
   // optimistic; the decision adds ConeParams::min_slope on top.
-  const Eigen::Matrix4d jtj = jacobian.transpose() * jacobian;
-  const Eigen::FullPivLU<Eigen::Matrix4d> lu(jtj);
+  const Eigen::FullPivLU<Eigen::Matrix4d> lu{Eigen::Matrix4d(jtj)};
   const int m = trimmed.inlier_count;
   if (m > 4 && lu.isInvertible()) {
-    const double variance = residuals.squaredNorm() / (m - 4);
+    const double variance = squares / (m - 4);
     const double slope_variance = variance * lu.inverse()(3, 3);
     if (slope_variance >= 0.0) solution.slope_stderr = std::sqrt(slope_variance);
   }

@@ -6,8 +6,6 @@
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 
-#include <immintrin.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -16,6 +14,11 @@
 #include <memory>
 #include <mutex>
 #include <numeric>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define TABLETOP_SHAPES_PACK_LANES 1
+#endif
 
 namespace tabletop_shapes {
 namespace {
@@ -46,31 +49,33 @@ __attribute__((target_clones("avx2", "default"))) void squaredDistances(
   }
 }
 
+#ifdef TABLETOP_SHAPES_PACK_LANES
+// kLeftPack[mask]: the lanes set in the 8-bit `mask`, in order, one byte each (then zeros).
+constexpr auto kLeftPack = [] {
+  std::array<uint64_t, 256> table{};
+  for (unsigned mask = 0; mask < 256; ++mask) {
+    for (unsigned lane = 0, kept = 0; lane < 8; ++lane) {
+      if (mask >> lane & 1u) table[mask] |= static_cast<uint64_t>(lane) << (8 * kept++);
+    }
+  }
+  return table;
+}();
+
 // The values of `values` <= bound, in their order, into `kept` (room for values.size());
 // returns how many. Eight at a time where the CPU has AVX2 (compared, then moved
-// together by a permutation from a table of the 256 comparison masks), else one at a time
+// together by kLeftPack's permutation), else one at a time
 // (each written, the end moving past it when it is kept): a fifth of the outlier removal's
 // instructions went to this loop over each point's ~300 block candidates.
 __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& values, float bound,
                                                       float* kept) {
-  static const auto permutations = [] {
-    std::array<std::array<uint8_t, 8>, 256> table{};
-    for (int mask = 0; mask < 256; ++mask) {
-      int lane = 0;
-      for (int bit = 0; bit < 8; ++bit) {
-        if (mask >> bit & 1) table[mask][lane++] = static_cast<uint8_t>(bit);
-      }
-    }
-    return table;
-  }();
   const size_t n = values.size();
   const __m256 limit = _mm256_set1_ps(bound);
   size_t count = 0, j = 0;
   for (; j + 8 <= n; j += 8) {
     const __m256 v = _mm256_loadu_ps(values.data() + j);
     const int mask = _mm256_movemask_ps(_mm256_cmp_ps(v, limit, _CMP_LE_OQ));
-    const __m256i order = _mm256_cvtepu8_epi32(
-        _mm_loadl_epi64(reinterpret_cast<const __m128i*>(permutations[mask].data())));
+    const __m256i order =
+        _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(kLeftPack[mask])));
     _mm256_storeu_ps(kept + count, _mm256_permutevar8x32_ps(v, order));
     count += static_cast<size_t>(__builtin_popcount(mask));
   }
@@ -80,10 +85,13 @@ __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& 
   }
   return count;
 }
+#endif
 
 size_t keepAtMost(const std::vector<float>& values, float bound, float* kept) {
+#ifdef TABLETOP_SHAPES_PACK_LANES
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (avx2) return keepAtMostAvx2(values, bound, kept);
+#endif
   size_t count = 0;
   for (const float v : values) {
     kept[count] = v;
@@ -145,6 +153,73 @@ float smallestValues(const std::vector<float>& values, size_t wanted, float boun
   std::nth_element(boundary, boundary + (needed - 1), boundary + at_boundary);
   std::copy(boundary, boundary + needed, smallest.begin() + taken);
   return boundary[needed - 1];
+}
+
+#ifdef TABLETOP_SHAPES_PACK_LANES
+// nearIndices eight candidates at a time: their squared distances as squaredDistances computes
+// them (no fused multiply-add), and the near ones' indices packed to the front with one
+// permutation (the radius search keeps ~1 in 9 of its candidates: the scalar loop cost ~4
+// instructions a candidate).
+__attribute__((target("avx2"))) size_t nearIndicesInAvx2(const std::vector<float>& xs,
+                                                         const std::vector<float>& ys,
+                                                         const std::vector<float>& zs,
+                                                         const std::vector<int>& indices, float qx,
+                                                         float qy, float qz, float radius_sq,
+                                                         int* near_indices) {
+  const __m256 at_x = _mm256_set1_ps(qx), at_y = _mm256_set1_ps(qy), at_z = _mm256_set1_ps(qz);
+  const __m256 limit = _mm256_set1_ps(radius_sq);
+  const size_t n = xs.size();
+  size_t j = 0, near = 0;
+  for (; j + 8 <= n; j += 8) {
+    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(&xs[j]), at_x);
+    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(&ys[j]), at_y);
+    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(&zs[j]), at_z);
+    const __m256 squared = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+    const unsigned mask =
+        static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(squared, limit, _CMP_LT_OQ)));
+    if (mask == 0) continue;
+    // Written in place: near <= j, so the eight lanes stay within the first n.
+    const __m256i lanes =
+        _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(kLeftPack[mask])));
+    const __m256i candidates = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(&indices[j]));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(near_indices + near),
+                        _mm256_permutevar8x32_epi32(candidates, lanes));
+    near += static_cast<size_t>(__builtin_popcount(mask));
+  }
+  for (; j < n; ++j) {
+    const float dx = xs[j] - qx, dy = ys[j] - qy, dz = zs[j] - qz;
+    near_indices[near] = indices[j];
+    near += dx * dx + dy * dy + dz * dz < radius_sq;
+  }
+  return near;
+}
+#endif
+
+// The indices of the candidates (xs, ys, zs) whose squared distance from (qx, qy, qz) is below
+// radius_sq, in the candidates' order, written to near_indices (room for all of them); their
+// number.
+size_t nearIndices(const std::vector<float>& xs, const std::vector<float>& ys,
+                   const std::vector<float>& zs, const std::vector<int>& indices, float qx,
+                   float qy, float qz, float radius_sq, int* near_indices,
+                   std::vector<float>& squared) {
+#ifdef TABLETOP_SHAPES_PACK_LANES
+  static const bool has_avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  if (has_avx2) {
+    return nearIndicesInAvx2(xs, ys, zs, indices, qx, qy, qz, radius_sq, near_indices);
+  }
+#endif
+  squaredDistances(xs, ys, zs, qx, qy, qz, squared);
+  // Without a branch: each candidate is written and the end moves past it when it is near.
+  size_t near = 0;
+  for (size_t j = 0; j < xs.size(); ++j) {
+    near_indices[near] = indices[j];
+    near += squared[j] < radius_sq;
+  }
+  return near;
 }
 
 }  // namespace
@@ -577,20 +652,14 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
       }
       for (size_t i = begin; i < end; ++i) {
         const Entry& q = points_[i];
-        squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
-        if (!this->sorted_results_) {
-          // In the candidates' order, without a branch: each candidate is written and the
-          // end moves past it when it is near.
+        if (!this->sorted_results_) {  // in the candidates' order
           neighbours.resize(xs.size());
-          size_t near = 0;
-          for (size_t j = 0; j < xs.size(); ++j) {
-            neighbours[near] = indices[j];
-            near += squared[j] < radius_sq;
-          }
-          neighbours.resize(near);
+          neighbours.resize(nearIndices(xs, ys, zs, indices, q.x, q.y, q.z, radius_sq,
+                                        neighbours.data(), squared));
           visit(q.index, neighbours);
           continue;
         }
+        squaredDistances(xs, ys, zs, q.x, q.y, q.z, squared);
         // (distance, index) as one integer: the bits of a float >= 0 order as its value, so
         // sorting the keys orders as radiusSearch's sort of pairs, in fewer instructions.
         keys.clear();

@@ -72,9 +72,7 @@ constexpr float kComparedFraction = 0.9f;
 float visibleSurfaceResidual(const ShapeFit& fit, const NormalCloud& cluster) {
   std::vector<float> squared;
   if (fit.type == ShapeType::Cube) {
-    squared.reserve(cluster.size());
-    for (const auto& p : cluster.points)
-      squared.push_back(distanceToVisibleBoxSurface(fit, p.getVector3fMap()));
+    distancesToVisibleBoxSurface(fit, cluster, squared);
   } else {
     distancesToVisibleRoundSurface(fit, cluster, squared);
   }
@@ -901,12 +899,24 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   // Beyond the paper, a cylinder lying on its side competes too: real cans and tins lie on the
   // table or stand on their rim (OSD learn30-43), and a box around them was all we had.
   // Residuals of the fits left ok (visibleSurfaceResidual).
+  // The three fits are independent of each other: with one object on the table (no other
+  // cluster to keep the second core busy) they run side by side, the two costlier first;
+  // among several clusters freeWorkerThreads() is 1 and they run in turn.
   float box_residual = 0.0f, round_residual = 0.0f, lying_residual = 0.0f;
-  const ShapeFit box_fit = checked(fitCube(normals, table, params.cube, box_smear), &box_residual);
-  const ShapeFit round_fit =
-      checked(fitRoundObject(normals, table, params.cylinder, params.cone), &round_residual);
-  const ShapeFit lying =
-      checked(fitLyingCylinder(normals, table, params.cylinder), &lying_residual);
+  ShapeFit box_fit, round_fit, lying;
+  parallelFor(
+      3,
+      [&](size_t model) {
+        if (model == 0) {
+          box_fit = checked(fitCube(normals, table, params.cube, box_smear), &box_residual);
+        } else if (model == 1) {
+          lying = checked(fitLyingCylinder(normals, table, params.cylinder), &lying_residual);
+        } else {
+          round_fit = checked(fitRoundObject(normals, table, params.cylinder, params.cone),
+                              &round_residual);
+        }
+      },
+      freeWorkerThreads());
   // A thin object's circle is its median width (narrowToPoints), and its points keep some
   // smear beside it: the residuals cannot tell its round solid from a box around the smear
   // (the box won on 4 of 18 rendered RealSense markers), and the predictor's guess decides.
@@ -931,7 +941,8 @@ ShapeFit estimateSolid(const ShapeEstimatorParams& params, const CloudConstPtr& 
   if (thin && guessed.ok) return raiseTopToCap(guessed, normals);
   const ShapeFit* best = nullptr;
   float best_residual = std::numeric_limits<float>::infinity();
-  for (const ShapeFit* fit : {&guessed, &other, &lying}) {
+  const ShapeFit* const in_order[] = {&guessed, &other, &lying};
+  for (const ShapeFit* fit : in_order) {
     if (!fit->ok) continue;
     const float residual = fit == &box_fit     ? box_residual
                            : fit == &round_fit ? round_residual

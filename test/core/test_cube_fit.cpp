@@ -269,6 +269,49 @@ TEST(CubeFit, BadInputFailsWithAReason) {
   EXPECT_FALSE(fitCube(scene.object, broken, CubeParams{}).ok);
 }
 
+// The distance to the faces of a box the camera sees: a point on the face towards the camera is
+// on it, one on the hidden back face as far from it as the box is deep; for a whole cloud the
+// same floats as point by point, and a camera inside the box (no face seen) falls back to the
+// distance to any face.
+TEST(CubeFit, DistancesToTheVisibleFacesOfABox) {
+  ShapeFit box;
+  box.type = ShapeType::Cube;
+  box.center = Eigen::Vector3f(0.0f, 0.0f, 1.0f);
+  box.dimensions = Eigen::Vector3f(0.1f, 0.08f, 0.06f);
+  box.orientation = Eigen::Quaternionf::Identity();
+  EXPECT_NEAR(distanceToVisibleBoxSurface(box, {0.01f, 0.02f, 0.97f}), 0.0f, 1e-6f);
+  EXPECT_NEAR(distanceToVisibleBoxSurface(box, {0.01f, 0.02f, 0.96f}), 0.01f, 1e-6f);
+  EXPECT_NEAR(distanceToVisibleBoxSurface(box, {0.01f, 0.02f, 1.03f}), 0.06f, 1e-6f);
+
+  ShapeFit turned = box;
+  turned.center = Eigen::Vector3f(0.2f, -0.1f, 0.9f);
+  turned.orientation =
+      Eigen::Quaternionf(Eigen::AngleAxisf(0.5f, Eigen::Vector3f(0.2f, -1.0f, 0.3f).normalized()));
+  ShapeFit around_camera = box;
+  around_camera.center = Eigen::Vector3f(0.01f, 0.0f, 0.0f);
+  for (const ShapeFit* seen : {&box, &turned, &around_camera}) {
+    const ShapeFit& fit = *seen;
+    NormalCloud points;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> offset(-0.08f, 0.08f);
+    for (int i = 0; i < 300; ++i) {
+      pcl::PointNormal p;
+      p.getVector3fMap() = fit.center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng));
+      points.push_back(p);
+    }
+    std::vector<float> distances;
+    distancesToVisibleBoxSurface(fit, points, distances);
+    ASSERT_EQ(distances.size(), points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector3f p = points[i].getVector3fMap();
+      EXPECT_EQ(distances[i], distanceToVisibleBoxSurface(fit, p)) << i;
+      if (seen == &around_camera) {
+        EXPECT_EQ(distances[i], distanceToBox(fit, p)) << i;
+      }
+    }
+  }
+}
+
 TEST(CubeFit, CylinderFitsWorseThanABox) {
   // The pipeline falls back on the residual: a cylinder fitted as a box leaves a much larger
   // rmse than a box does, or fails.

@@ -231,6 +231,29 @@ TEST(CircleFit, RefinementRemovesTheShortArcBias) {
   EXPECT_LT(std::abs(ray_quarter3.refined_bias), std::abs(ray_quarter3.algebraic_bias) / 3);
 }
 
+// Levenberg-Marquardt sums its normal equations over lanes of points (two or four): every
+// count of points, whole lanes or not, reaches the exact circle from a start millimetres off.
+TEST(CircleFit, RefinementFindsAnExactCircleWhateverThePointsLeftOverFromTheLanes) {
+  const Eigen::Vector2f centre(0.3f, -0.2f);
+  const float radius = 0.04f;
+  for (int n = 3; n <= 11; ++n) {
+    std::vector<Eigen::Vector2f> points;
+    for (int i = 0; i < n; ++i) {
+      const float angle = 2.1f * static_cast<float>(i) / static_cast<float>(n - 1);  // 120 degrees
+      points.push_back(centre + radius * Eigen::Vector2f(std::cos(angle), std::sin(angle)));
+    }
+    Circle start;
+    start.center = centre + Eigen::Vector2f(0.003f, -0.002f);
+    start.radius = radius + 0.004f;
+    start.ok = true;
+    const Circle refined = refineCircleGeometric(points, start, 100);
+    ASSERT_TRUE(refined.ok) << n << " points";
+    EXPECT_LT((refined.center - centre).norm(), 2e-6f) << n << " points";
+    EXPECT_NEAR(refined.radius, radius, 2e-6f) << n << " points";
+    EXPECT_LT(refined.rmse, 1e-6f) << n << " points";
+  }
+}
+
 TEST(CircleFit, DegenerateInputIsRejected) {
   EXPECT_FALSE(fitCircleAlgebraic({}).ok);
   EXPECT_FALSE(fitCircleAlgebraic({{0.0f, 0.0f}, {1.0f, 1.0f}}).ok);

@@ -34,6 +34,9 @@ float distanceToBox(const ShapeFit& box, const Eigen::Vector3f& point);
 // Distance [m] of `point` to the faces of that box the camera (at the origin) sees. A point
 // behind them (seen through the box) or beside a box too small is far from them.
 float distanceToVisibleBoxSurface(const ShapeFit& box, const Eigen::Vector3f& point);
+// The same for every point of `points` (the box's frame and visible faces worked out once).
+void distancesToVisibleBoxSurface(const ShapeFit& box, const NormalCloud& points,
+                                  std::vector<float>& distances);
 
 // Value below which `fraction` of the (non-empty) `values` lie (partially sorts `values`).
 float quantile(std::vector<float>& values, float fraction);
