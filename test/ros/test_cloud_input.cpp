@@ -3,6 +3,8 @@
 // cloud is read exactly.
 #include "tabletop_shapes/ros/cloud_input.h"
 
+#include "tabletop_shapes/core/parallel.h"
+
 #include <gtest/gtest.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
@@ -84,6 +86,55 @@ TEST(CloudInput, ColourCloudIsReadAsXyzIntoAReusedCloud) {
     EXPECT_EQ(cloud.points[i].z, 2.0f + i) << i;
     EXPECT_EQ(cloud.points[i].data[3], 1.0f) << i << ": as a constructed point's";
   }
+}
+
+// A camera-sized cloud is read in bands of points on two threads: bands that start inside a
+// row, rows that end in padding (row_step beyond width x point_step) and x y z at other
+// offsets than 0 4 8 all land on the right points.
+TEST(CloudInput, LargeCloudIsReadInBandsOnTwoThreads) {
+  constexpr uint32_t kWidth = 641, kHeight = 77, kPointStep = 20, kRowPadding = 12;
+  sensor_msgs::PointCloud2 msg;
+  msg.width = kWidth;
+  msg.height = kHeight;
+  msg.point_step = kPointStep;
+  msg.row_step = kWidth * kPointStep + kRowPadding;
+  for (const auto& [name, offset] :
+       {std::pair<const char*, uint32_t>{"z", 4}, {"x", 8}, {"y", 12}}) {
+    sensor_msgs::PointField field;
+    field.name = name;
+    field.offset = offset;
+    field.datatype = sensor_msgs::PointField::FLOAT32;
+    field.count = 1;
+    msg.fields.push_back(field);
+  }
+  msg.data.assign(static_cast<size_t>(msg.row_step) * kHeight, 0xff);  // padding: NaN bytes
+  const auto valueAt = [](uint32_t row, uint32_t column, int axis) {
+    return static_cast<float>(row) + 0.001f * static_cast<float>(column) + 1000.0f * axis;
+  };
+  for (uint32_t row = 0; row < kHeight; ++row) {
+    for (uint32_t column = 0; column < kWidth; ++column) {
+      uint8_t* point = msg.data.data() + row * msg.row_step + column * kPointStep;
+      for (int axis = 0; axis < 3; ++axis) {
+        const float value = valueAt(row, column, axis);
+        std::memcpy(point + (axis == 0 ? 8 : axis == 1 ? 12 : 4), &value, 4);
+      }
+    }
+  }
+  ASSERT_EQ(invalidCloudReason(msg, kCap), "");
+  setWorkerThreads(2);
+  bridge::ReceivedCloud cloud;
+  bridge::readInputCloud(msg, cloud);
+  setWorkerThreads(0);
+  ASSERT_EQ(cloud.size(), static_cast<size_t>(kWidth) * kHeight);
+  size_t wrong = 0;
+  for (uint32_t row = 0; row < kHeight; ++row) {
+    for (uint32_t column = 0; column < kWidth; ++column) {
+      const pcl::PointXYZ& p = cloud.points[row * kWidth + column];
+      wrong += p.x != valueAt(row, column, 0) || p.y != valueAt(row, column, 1) ||
+               p.z != valueAt(row, column, 2) || p.data[3] != 1.0f;
+    }
+  }
+  EXPECT_EQ(wrong, 0u);
 }
 
 // The cloud of the last frame is read into again once nobody holds it; one still held, or one
