@@ -10,11 +10,13 @@
 // Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
 // on all cores decides each pixel (flying, out of range), four pixels at a time, packs a kept
 // point's integer voxel coordinates into a 63-bit key and gathers the view bounds on the way; a
-// single pass in image order then adds each point to its voxel's running sum, found through an
-// open-addressing hash table. Neighbouring pixels of an organised cloud mostly share a voxel, so
-// the left and the upper pixel's voxels are tried first. The table and the sums are members and
-// are reused from frame to frame; the output lists the voxels in the order they are first met,
-// so it is deterministic.
+// second pass, one per thread, each over the whole image in image order, adds each point to its
+// voxel's running sum, found through an open-addressing hash table, in the thread that owns the
+// voxel (stripes of the voxel space along x, shared out between the threads). Neighbouring
+// pixels of an organised cloud mostly share a voxel, so the left and the upper pixel's voxels
+// are tried first. The tables and the sums are members and are reused from frame to frame; the
+// output lists the voxels in the order they are first met, so it is deterministic and the same
+// whatever the number of threads.
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/float4.h"
