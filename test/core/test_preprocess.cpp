@@ -184,20 +184,23 @@ TEST(Preprocess, VoxelSumsAddInImageOrderWhateverTheBands) {
   setWorkerThreads(0);
 }
 
-// The voxel sums are shared out between threads by stripes of eight voxels along x; each
-// thread skips the others' stripes. Whichever thread sums a voxel, the voxels come out in the
-// order their first points are met in the image, each the centroid of its points added in
-// image order, as one pass over the image gives them. The rows' first 64 pixels run slowly
-// along x (stripes 0 and 1, four pixels per voxel: long runs of one stripe to skip), the
-// others jump between five stripes from pixel to pixel; NaN holes in both.
+// The voxel sums are shared out between threads by the quadrants of the camera frame (signs of
+// x and y); each thread skips the others' quadrants. Whichever thread sums a voxel, the voxels
+// come out in the order their first points are met in the image, each the centroid of its
+// points added in image order, as one pass over the image gives them. The rows' first 64 pixels
+// run slowly along x across x = 0 (four pixels per voxel: long runs of one quadrant to skip),
+// the others jump across x = 0 from pixel to pixel; y changes sign between rows 2 and 3; NaN
+// holes in both.
 TEST(Preprocess, VoxelsComeOutInTheOrderFirstMetWhicheverThreadSumsThem) {
   const int width = 101, height = 7;
   pcl::PointCloud<pcl::PointXYZ> in(width, height);
   for (int v = 0; v < height; ++v) {
     for (int u = 0; u < width; ++u) {
-      const float x = u < 64 ? 0.0025f * u + 0.0003f * v : 0.01f * ((u * 7 + v * 3) % 40) + 0.003f;
-      in.at(u, v) = (u + v) % 9 == 0 ? pcl::PointXYZ(kNaN, kNaN, kNaN)
-                                     : pcl::PointXYZ(x, 0.01f * (v / 2) + 0.001f * u, 1.0f);
+      const float x =
+          u < 64 ? 0.0025f * u + 0.0003f * v - 0.08f : 0.01f * ((u * 7 + v * 3) % 40) - 0.197f;
+      in.at(u, v) = (u + v) % 9 == 0
+                        ? pcl::PointXYZ(kNaN, kNaN, kNaN)
+                        : pcl::PointXYZ(x, 0.01f * (v / 2) + 0.0001f * u - 0.015f, 1.0f);
     }
   }
   const float leaf = 0.01f, inv_leaf = 1.0f / leaf;  // the filter's rounding at voxel borders
