@@ -10,9 +10,9 @@
 // Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
 // on all cores decides each pixel (flying, out of range), four pixels at a time, packs a kept
 // point's integer voxel coordinates into a 63-bit key and gathers the view bounds on the way; a
-// second pass, one per quadrant of the camera frame, each over the whole image in image order,
-// adds each point of its quadrant to its voxel's running sum, found through an open-addressing
-// hash table; the quadrants' passes run on all cores. Neighbouring pixels of an organised cloud
+// second pass, one per side of the camera frame (x < 0, x >= 0) on its own core, each over the
+// whole image in image order, adds each point of its side to its voxel's running sum, found
+// through an open-addressing hash table. Neighbouring pixels of an organised cloud
 // mostly share a voxel, so the left and the upper pixel's voxels are tried first. The tables and
 // the sums are members and are reused from frame to frame; the output lists the voxels in the order
 // they are first met, so it is deterministic and the same whatever the number of threads.
@@ -40,42 +40,38 @@ inline bool finitePoint(float x, float y, float z) {
   return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
 }
 
-// The voxel sums share the voxels out between threads by the quadrant of the camera frame they
-// lie in (the signs of x and y, the top bits of the key's x and y): a pinhole camera's quadrants
-// are the image's quadrants around the principal point, so a thread's voxels fill long runs of
-// pixels and it skips the others' runs in a few steps. Four owners for two threads: the one done
-// first takes the third, so that a scene crowded on one side still keeps both busy.
-constexpr size_t kQuadrants = 4;
-constexpr uint64_t kQuadrantBits =
-    uint64_t{1} << (3 * voxel_key::kAxisBits - 1) | uint64_t{1} << (2 * voxel_key::kAxisBits - 1);
+// The voxel sums share the voxels out between two threads by the side of the camera frame they
+// lie in (the sign of x, the top bit of the key's x): for a pinhole camera the image's left and
+// right of the principal point, so each row is one run of each side's pixels, and a thread skips
+// the other side's run in a few steps. (The four quadrants, signs of x and y, as four items for
+// two threads: each pass reads all keys, and four passes were slower on the wall.)
+constexpr size_t kSides = 2;
+constexpr uint64_t kSideBit = uint64_t{1} << (3 * voxel_key::kAxisBits - 1);
 
-inline size_t quadrantOf(uint64_t key) {
-  return (key >> (3 * voxel_key::kAxisBits - 2) & 2) | (key >> (2 * voxel_key::kAxisBits - 1) & 1);
-}
+inline size_t sideOf(uint64_t key) { return key >> (3 * voxel_key::kAxisBits - 1) & 1; }
 
-// The first of keys[from, end) that is neither kEmpty nor in the quadrant whose key bits are
-// `quadrant` (kEmpty: in none, the first key not kEmpty); end when there is none. A thread
-// skips the other threads' quadrants and the dropped pixels with it.
-inline int nextOtherQuadrant(const uint64_t* keys, int from, int end, uint64_t quadrant) {
+// The first of keys[from, end) that is neither kEmpty nor on the side whose key bit is `side`
+// (kEmpty: on neither, the first key not kEmpty); end when there is none. A thread skips the
+// other thread's side and the dropped pixels with it.
+inline int nextOtherSide(const uint64_t* keys, int from, int end, uint64_t side) {
   int u = from;
 #ifdef __SSE2__
   // Four keys at a time, on their upper 32 bits: kEmpty's are all ones (a key has 63 bits),
-  // and they hold the quadrant's bits.
-  static_assert(2 * voxel_key::kAxisBits - 1 >= 32, "the quadrant lies in the key's upper half");
-  const uint64_t bits_of_quadrant = quadrant == voxel_key::kEmpty ? 0 : kQuadrantBits;
-  const __m128i quadrants = _mm_set1_epi32(static_cast<int>(quadrant >> 32)),
-                bits = _mm_set1_epi32(static_cast<int>(bits_of_quadrant >> 32)),
-                ones = _mm_set1_epi32(-1);
+  // and they hold the side's bit.
+  static_assert(3 * voxel_key::kAxisBits - 1 >= 32, "the side lies in the key's upper half");
+  const uint64_t side_bit = side == voxel_key::kEmpty ? 0 : kSideBit;
+  const __m128i sides = _mm_set1_epi32(static_cast<int>(side >> 32)),
+                bits = _mm_set1_epi32(static_cast<int>(side_bit >> 32)), ones = _mm_set1_epi32(-1);
   for (; u + 4 <= end; u += 4) {
     const __m128 first = _mm_loadu_ps(reinterpret_cast<const float*>(keys + u)),
                  second = _mm_loadu_ps(reinterpret_cast<const float*>(keys + u + 2));
     const __m128i upper = _mm_castps_si128(_mm_shuffle_ps(first, second, _MM_SHUFFLE(3, 1, 3, 1)));
     const __m128i skipped = _mm_or_si128(_mm_cmpeq_epi32(upper, ones),
-                                         _mm_cmpeq_epi32(_mm_and_si128(upper, bits), quadrants));
+                                         _mm_cmpeq_epi32(_mm_and_si128(upper, bits), sides));
     if (_mm_movemask_epi8(skipped) != 0xffff) break;
   }
 #endif
-  while (u < end && (keys[u] == voxel_key::kEmpty || (keys[u] & kQuadrantBits) == quadrant)) ++u;
+  while (u < end && (keys[u] == voxel_key::kEmpty || (keys[u] & kSideBit) == side)) ++u;
   return u;
 }
 
@@ -345,7 +341,7 @@ void Preprocessor::sumOwnedVoxels(const pcl::PointCloud<PointT>& in, int width, 
   row_voxels.resize(rows ? 2 * static_cast<size_t>(width) : 0);
   uint32_t* above = row_voxels.data();
   uint32_t* current = rows ? above + width : nullptr;
-  uint64_t last_key = voxel_key::kEmpty, last_quadrant = ~uint64_t{0};
+  uint64_t last_key = voxel_key::kEmpty, last_side = ~uint64_t{0};
   uint32_t last_voxel = 0;
   bool owned = false;
   for (int v = 0; v < height; ++v) {
@@ -354,17 +350,17 @@ void Preprocessor::sumOwnedVoxels(const pcl::PointCloud<PointT>& in, int width, 
     for (int u = 0; u < width; ++u) {
       const uint64_t key = keys[u];
       if (key == voxel_key::kEmpty) {  // on to the last dropped pixel of the run
-        u = nextOtherQuadrant(keys, u + 1, width, voxel_key::kEmpty) - 1;
+        u = nextOtherSide(keys, u + 1, width, voxel_key::kEmpty) - 1;
         continue;
       }
       if (key != last_key) {
         last_key = key;
-        if ((key & kQuadrantBits) != last_quadrant) {
-          last_quadrant = key & kQuadrantBits;
-          owned = owners == 1 || quadrantOf(key) == owner;
+        if ((key & kSideBit) != last_side) {
+          last_side = key & kSideBit;
+          owned = owners == 1 || sideOf(key) == owner;
         }
-        if (!owned) {  // on to the pixel before the next other quadrant's
-          u = nextOtherQuadrant(keys, u + 1, width, last_quadrant) - 1;
+        if (!owned) {  // on to the pixel before the next key of another side
+          u = nextOtherSide(keys, u + 1, width, last_side) - 1;
           continue;
         }
         // The pixel above with the same key is this owner's too: its voxel was kept.
@@ -541,7 +537,7 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
   // order they are first met, whatever the number of threads. (Summing per band of rows and
   // merging the bands' tables was slower: most voxels hold one or two points, and the merge's
   // inserts missed the cache.)
-  const size_t owners = threads > 1 ? kQuadrants : 1;
+  const size_t owners = threads > 1 ? kSides : 1;
   if (owners_.size() < owners) owners_.resize(owners);
   parallelFor(
       owners, [&](size_t owner) { sumOwnedVoxels(in, width, height, owner, owners); }, threads);

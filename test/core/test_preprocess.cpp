@@ -184,13 +184,12 @@ TEST(Preprocess, VoxelSumsAddInImageOrderWhateverTheBands) {
   setWorkerThreads(0);
 }
 
-// The voxel sums are shared out between threads by the quadrants of the camera frame (signs of
-// x and y); each thread skips the others' quadrants. Whichever thread sums a voxel, the voxels
-// come out in the order their first points are met in the image, each the centroid of its
-// points added in image order, as one pass over the image gives them. The rows' first 64 pixels
-// run slowly along x across x = 0 (four pixels per voxel: long runs of one quadrant to skip),
-// the others jump across x = 0 from pixel to pixel; y changes sign between rows 2 and 3; NaN
-// holes in both.
+// The voxel sums are shared out between threads by the sides of the camera frame (the sign of
+// x); each thread skips the other's side. Whichever thread sums a voxel, the voxels come out in
+// the order their first points are met in the image, each the centroid of its points added in
+// image order, as one pass over the image gives them. The rows' first 64 pixels run slowly along
+// x across x = 0 (four pixels per voxel: long runs of one side to skip), the others jump across
+// x = 0 from pixel to pixel; NaN holes in both.
 TEST(Preprocess, VoxelsComeOutInTheOrderFirstMetWhicheverThreadSumsThem) {
   const int width = 101, height = 7;
   pcl::PointCloud<pcl::PointXYZ> in(width, height);
