@@ -10,11 +10,12 @@
 // Faster than pcl::VoxelGrid (which sorts (voxel, point) pairs): a pass over bands of image rows
 // on all cores decides each pixel (flying, out of range), four pixels at a time, packs a kept
 // point's integer voxel coordinates into a 63-bit key and gathers the view bounds on the way; a
-// single pass in image order then adds each point to its voxel's running sum, found through an
-// open-addressing hash table. Neighbouring pixels of an organised cloud mostly share a voxel, so
-// the left and the upper pixel's voxels are tried first. The table and the sums are members and
-// are reused from frame to frame; the output lists the voxels in the order they are first met,
-// so it is deterministic.
+// second pass, one per side of the camera frame (x < 0, x >= 0) on its own core, each over the
+// whole image in image order, adds each point of its side to its voxel's running sum, found
+// through an open-addressing hash table. Neighbouring pixels of an organised cloud
+// mostly share a voxel, so the left and the upper pixel's voxels are tried first. The tables and
+// the sums are members and are reused from frame to frame; the output lists the voxels in the order
+// they are first met, so it is deterministic and the same whatever the number of threads.
 #include "tabletop_shapes/core/preprocess.h"
 
 #include "tabletop_shapes/core/float4.h"
@@ -39,41 +40,86 @@ inline bool finitePoint(float x, float y, float z) {
   return std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
 }
 
+// The voxel sums share the voxels out between two threads by the side of the camera frame they
+// lie in (the sign of x, the top bit of the key's x): for a pinhole camera the image's left and
+// right of the principal point, so each row is one run of each side's pixels, and a thread skips
+// the other side's run in a few steps. (The four quadrants, signs of x and y, as four items for
+// two threads: each pass reads all keys, and four passes were slower on the wall.)
+constexpr size_t kSides = 2;
+constexpr uint64_t kSideBit = uint64_t{1} << (3 * voxel_key::kAxisBits - 1);
+
+inline size_t sideOf(uint64_t key) { return key >> (3 * voxel_key::kAxisBits - 1) & 1; }
+
+// The first of keys[from, end) that is neither kEmpty nor on the side whose key bit is `side`
+// (kEmpty: on neither, the first key not kEmpty); end when there is none. A thread skips the
+// other thread's side and the dropped pixels with it.
+inline int nextOtherSide(const uint64_t* keys, int from, int end, uint64_t side) {
+  int u = from;
+#ifdef __SSE2__
+  // Four keys at a time, on their upper 32 bits: kEmpty's are all ones (a key has 63 bits),
+  // and they hold the side's bit.
+  static_assert(3 * voxel_key::kAxisBits - 1 >= 32, "the side lies in the key's upper half");
+  const uint64_t side_bit = side == voxel_key::kEmpty ? 0 : kSideBit;
+  const __m128i sides = _mm_set1_epi32(static_cast<int>(side >> 32)),
+                bits = _mm_set1_epi32(static_cast<int>(side_bit >> 32)), ones = _mm_set1_epi32(-1);
+  for (; u + 4 <= end; u += 4) {
+    const __m128 first = _mm_loadu_ps(reinterpret_cast<const float*>(keys + u)),
+                 second = _mm_loadu_ps(reinterpret_cast<const float*>(keys + u + 2));
+    const __m128i upper = _mm_castps_si128(_mm_shuffle_ps(first, second, _MM_SHUFFLE(3, 1, 3, 1)));
+    const __m128i skipped = _mm_or_si128(_mm_cmpeq_epi32(upper, ones),
+                                         _mm_cmpeq_epi32(_mm_and_si128(upper, bits), sides));
+    if (_mm_movemask_epi8(skipped) != 0xffff) break;
+  }
+#endif
+  while (u < end && (keys[u] == voxel_key::kEmpty || (keys[u] & kSideBit) == side)) ++u;
+  return u;
+}
+
 }  // namespace
 
 void Preprocessor::VoxelTable::clear() {
-  slots_.assign(std::max<size_t>(slots_.size(), 1024), Slot{voxel_key::kEmpty, 0});
+  if (slots_.empty() || ++frame_ == 0) {  // a new table, or the frame count wrapped
+    slots_.assign(std::max<size_t>(slots_.size(), 1024), Slot{voxel_key::kEmpty, 0, 0});
+    frame_ = 1;
+  }
   sums.clear();
 }
 
 void Preprocessor::VoxelTable::grow() {
   const size_t capacity = 2 * slots_.size();
-  slots_.assign(capacity, Slot{voxel_key::kEmpty, 0});
+  slots_.assign(capacity, Slot{voxel_key::kEmpty, 0, 0});
   for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
     const uint64_t key = sums[voxel].key;
     size_t slot = voxel_key::hash(key) & (capacity - 1);
-    while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & (capacity - 1);
-    slots_[slot] = {key, voxel};
+    while (slots_[slot].frame == frame_) slot = (slot + 1) & (capacity - 1);
+    slots_[slot] = {key, voxel, frame_};
   }
 }
 
-uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key) {
+// Inline: the voxel sum's inner loop calls it (out of line, a shared library's call goes
+// through the PLT); a new voxel's insert is out of line.
+inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) {
   // At most half full.
-  size_t mask = slots_.size() - 1, slot = voxel_key::hash(key) & mask;
-  while (slots_[slot].key != voxel_key::kEmpty && slots_[slot].key != key) {
+  const size_t mask = slots_.size() - 1;
+  size_t slot = voxel_key::hash(key) & mask;
+  while (slots_[slot].frame == frame_) {
+    if (slots_[slot].key == key) return slots_[slot].voxel;
     slot = (slot + 1) & mask;
   }
-  if (slots_[slot].key == voxel_key::kEmpty) {
-    if (2 * (sums.size() + 1) > slots_.size()) {
-      grow();
-      mask = slots_.size() - 1;
-      slot = voxel_key::hash(key) & mask;
-      while (slots_[slot].key != voxel_key::kEmpty) slot = (slot + 1) & mask;
-    }
-    slots_[slot] = {key, static_cast<uint32_t>(sums.size())};
-    sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0});
+  return insert(key, pixel, slot);
+}
+
+uint32_t Preprocessor::VoxelTable::insert(uint64_t key, uint32_t pixel, size_t slot) {
+  if (2 * (sums.size() + 1) > slots_.size()) {
+    grow();
+    const size_t mask = slots_.size() - 1;
+    slot = voxel_key::hash(key) & mask;
+    while (slots_[slot].frame == frame_) slot = (slot + 1) & mask;
   }
-  return slots_[slot].voxel;
+  const uint32_t voxel = static_cast<uint32_t>(sums.size());
+  slots_[slot] = {key, voxel, frame_};
+  sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0, pixel});
+  return voxel;
 }
 
 size_t Preprocessor::VoxelTable::bytes() const {
@@ -284,33 +330,115 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
 }
 
 template <typename PointT>
-void Preprocessor::sumVoxels(const pcl::PointCloud<PointT>& in, int width, int height) {
+void Preprocessor::sumOwnedVoxels(const pcl::PointCloud<PointT>& in, int width, int height,
+                                  size_t owner, size_t owners) {
+  VoxelTable& table = owners_[owner].table;
+  table.clear();
   // Neighbouring pixels mostly share a voxel: the left one's (last_key) or the one above's
-  // (row_voxels_ keeps the previous row's voxels) is taken without a hash lookup.
-  table_.clear();
+  // (row_voxels keeps the previous row's voxels) is taken without a hash lookup.
   const bool rows = height > 1;
-  row_voxels_.resize(rows ? 2 * static_cast<size_t>(width) : 0);
-  uint32_t* above = row_voxels_.data();
+  std::vector<uint32_t>& row_voxels = owners_[owner].row_voxels;
+  row_voxels.resize(rows ? 2 * static_cast<size_t>(width) : 0);
+  uint32_t* above = row_voxels.data();
   uint32_t* current = rows ? above + width : nullptr;
-  uint64_t last_key = voxel_key::kEmpty;
+  uint64_t last_key = voxel_key::kEmpty, last_side = ~uint64_t{0};
   uint32_t last_voxel = 0;
+  bool owned = false;
   for (int v = 0; v < height; ++v) {
     const size_t row = static_cast<size_t>(v) * width;
+    const uint64_t* keys = &keys_[row];
     for (int u = 0; u < width; ++u) {
-      const uint64_t key = keys_[row + u];
-      if (key == voxel_key::kEmpty) continue;
+      const uint64_t key = keys[u];
+      if (key == voxel_key::kEmpty) {  // on to the last dropped pixel of the run
+        u = nextOtherSide(keys, u + 1, width, voxel_key::kEmpty) - 1;
+        continue;
+      }
       if (key != last_key) {
-        last_voxel = v > 0 && keys_[row - width + u] == key ? above[u] : table_.voxelOf(key);
         last_key = key;
+        if ((key & kSideBit) != last_side) {
+          last_side = key & kSideBit;
+          owned = owners == 1 || sideOf(key) == owner;
+        }
+        if (!owned) {  // on to the pixel before the next key of another side
+          u = nextOtherSide(keys, u + 1, width, last_side) - 1;
+          continue;
+        }
+        // The pixel above with the same key is this owner's too: its voxel was kept.
+        last_voxel = v > 0 && keys_[row - width + u] == key
+                         ? above[u]
+                         : table.voxelOf(key, static_cast<uint32_t>(row + u));
+      } else if (!owned) {
+        continue;
       }
       if (rows) current[u] = last_voxel;
       const PointT& p = in.points[row + u];
-      VoxelSum& sum = table_.sums[last_voxel];
+      VoxelSum& sum = table.sums[last_voxel];
       sum.x += p.x, sum.y += p.y, sum.z += p.z;
       ++sum.count;
     }
     std::swap(above, current);
   }
+}
+
+void Preprocessor::writeCentroids(size_t owners, size_t pixels, size_t pieces, unsigned threads,
+                                  Cloud& out) {
+  size_t voxels = 0;
+  for (size_t owner = 0; owner < owners; ++owner) voxels += owners_[owner].table.sums.size();
+  // The points a reused cloud held are overwritten, not zeroed first.
+  out.points.resize(voxels);
+  pieces = std::max<size_t>(1, std::min(pieces, voxels));
+  // Each owner's voxels are in the order they are first met; the output merges them. A piece
+  // takes the voxels first met in its range of pixels; the voxels first met before the range
+  // tell where its output starts.
+  parallelFor(
+      pieces,
+      [&](size_t piece) {
+        const size_t begin_pixel = piece * pixels / pieces,
+                     end_pixel = (piece + 1) * pixels / pieces;
+        auto firstMetFrom = [](const std::vector<VoxelSum>& sums, size_t pixel) {
+          return static_cast<size_t>(std::lower_bound(sums.begin(), sums.end(), pixel,
+                                                      [](const VoxelSum& sum, size_t at) {
+                                                        return sum.first_pixel < at;
+                                                      }) -
+                                     sums.begin());
+        };
+        std::vector<const VoxelSum*> next(owners), end(owners);
+        size_t at = 0;
+        for (size_t owner = 0; owner < owners; ++owner) {
+          const std::vector<VoxelSum>& sums = owners_[owner].table.sums;
+          const size_t from = firstMetFrom(sums, begin_pixel);
+          next[owner] = sums.data() + from;
+          end[owner] = sums.data() + firstMetFrom(sums, end_pixel);
+          at += from;
+        }
+        for (;;) {
+          // The owner whose next voxel is met first takes its voxels met before any other's.
+          size_t first_owner = owners;
+          uint32_t first = std::numeric_limits<uint32_t>::max(), others_first = first;
+          for (size_t owner = 0; owner < owners; ++owner) {
+            if (next[owner] == end[owner]) continue;
+            if (next[owner]->first_pixel < first) {
+              others_first = first, first = next[owner]->first_pixel, first_owner = owner;
+            } else {
+              others_first = std::min(others_first, next[owner]->first_pixel);
+            }
+          }
+          if (first_owner == owners) break;
+          // Locals: the output's stores cannot alias them.
+          const VoxelSum *sum = next[first_owner], *const last = end[first_owner];
+          pcl::PointXYZ* point = &out.points[at];
+          do {
+            const double inv_count = 1.0 / sum->count;
+            *point++ = pcl::PointXYZ(static_cast<float>(sum->x * inv_count),
+                                     static_cast<float>(sum->y * inv_count),
+                                     static_cast<float>(sum->z * inv_count));
+            ++sum;
+          } while (sum != last && sum->first_pixel < others_first);
+          at += static_cast<size_t>(sum - next[first_owner]);
+          next[first_owner] = sum;
+        }
+      },
+      threads);
 }
 
 void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZ>& in, Cloud& out, ViewBounds* view) {
@@ -334,21 +462,26 @@ void Preprocessor::apply(const pcl::PointCloud<pcl::PointXYZRGBA>& in, Cloud& ou
 }
 
 size_t Preprocessor::bufferBytes() const {
-  return table_.bytes() + keys_.capacity() * sizeof(uint64_t) +
-         row_voxels_.capacity() * sizeof(uint32_t);
+  size_t bytes = keys_.capacity() * sizeof(uint64_t);
+  for (const VoxelOwner& owner : owners_) {
+    bytes += owner.table.bytes() + owner.row_voxels.capacity() * sizeof(uint32_t);
+  }
+  return bytes;
 }
 
 void Preprocessor::releaseOversizedBuffers(size_t input_points) {
-  table_.release();
   // One key per input point: kept while frames of about this size come.
   constexpr size_t kKeySlack = 2, kKeepBytes = 1 << 20;
   if (keys_.capacity() * sizeof(uint64_t) > kKeepBytes &&
       keys_.capacity() > kKeySlack * input_points) {
     std::vector<uint64_t>().swap(keys_);
   }
-  if (row_voxels_.capacity() * sizeof(uint32_t) > kKeepBytes &&
-      row_voxels_.capacity() > kKeySlack * input_points) {
-    std::vector<uint32_t>().swap(row_voxels_);
+  for (VoxelOwner& owner : owners_) {
+    owner.table.release();
+    if (owner.row_voxels.capacity() * sizeof(uint32_t) > kKeepBytes &&
+        owner.row_voxels.capacity() > kKeySlack * input_points) {
+      std::vector<uint32_t>().swap(owner.row_voxels);
+    }
   }
 }
 
@@ -399,28 +532,16 @@ void Preprocessor::applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, View
     return;
   }
 
-  // One pass in image order: each voxel's double sum adds its points in that order, and the
-  // voxels come out in the order they are first met, whatever the number of threads. (Summing
-  // per band on all cores and merging the bands' tables in image order was slower: most voxels
-  // hold one or two points, and the merge's inserts into the frame's table miss the cache.)
-  sumVoxels(in, width, height);
-  // The centroids, in parts on all cores.
-  const std::vector<VoxelSum>& sums = table_.sums;
-  // The points a reused cloud held are overwritten, not zeroed first.
-  out.points.resize(sums.size());
-  const size_t parts = std::min<size_t>(static_cast<size_t>(bands), sums.size());
+  // The voxel sums on all cores, each thread summing the voxels it owns in one pass in image
+  // order: each voxel's double sum adds its points in that order, and the voxels come out in the
+  // order they are first met, whatever the number of threads. (Summing per band of rows and
+  // merging the bands' tables was slower: most voxels hold one or two points, and the merge's
+  // inserts missed the cache.)
+  const size_t owners = threads > 1 ? kSides : 1;
+  if (owners_.size() < owners) owners_.resize(owners);
   parallelFor(
-      parts,
-      [&](size_t part) {
-        for (size_t i = part * sums.size() / parts, end = (part + 1) * sums.size() / parts; i < end;
-             ++i) {
-          const double inv_count = 1.0 / sums[i].count;
-          out.points[i] = pcl::PointXYZ(static_cast<float>(sums[i].x * inv_count),
-                                        static_cast<float>(sums[i].y * inv_count),
-                                        static_cast<float>(sums[i].z * inv_count));
-        }
-      },
-      threads);
+      owners, [&](size_t owner) { sumOwnedVoxels(in, width, height, owner, owners); }, threads);
+  writeCentroids(owners, in.points.size(), static_cast<size_t>(bands), threads, out);
   out.width = static_cast<uint32_t>(out.points.size());
   releaseOversizedBuffers(in.points.size());
 }

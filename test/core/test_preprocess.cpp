@@ -11,6 +11,7 @@
 #include <limits>
 #include <map>
 #include <tuple>
+#include <vector>
 
 namespace tabletop_shapes {
 namespace {
@@ -179,6 +180,53 @@ TEST(Preprocess, VoxelSumsAddInImageOrderWhateverTheBands) {
     EXPECT_EQ(out[0].x, 0.25f) << threads << " threads";
     EXPECT_EQ(out[0].y, 0.5f);
     EXPECT_EQ(out[0].z, 1.0f);
+  }
+  setWorkerThreads(0);
+}
+
+// The voxel sums are shared out between threads by the sides of the camera frame (the sign of
+// x); each thread skips the other's side. Whichever thread sums a voxel, the voxels come out in
+// the order their first points are met in the image, each the centroid of its points added in
+// image order, as one pass over the image gives them. The rows' first 64 pixels run slowly along
+// x across x = 0 (four pixels per voxel: long runs of one side to skip), the others jump across
+// x = 0 from pixel to pixel; NaN holes in both.
+TEST(Preprocess, VoxelsComeOutInTheOrderFirstMetWhicheverThreadSumsThem) {
+  const int width = 101, height = 7;
+  pcl::PointCloud<pcl::PointXYZ> in(width, height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const float x =
+          u < 64 ? 0.0025f * u + 0.0003f * v - 0.08f : 0.01f * ((u * 7 + v * 3) % 40) - 0.197f;
+      in.at(u, v) = (u + v) % 9 == 0
+                        ? pcl::PointXYZ(kNaN, kNaN, kNaN)
+                        : pcl::PointXYZ(x, 0.01f * (v / 2) + 0.0001f * u - 0.015f, 1.0f);
+    }
+  }
+  const float leaf = 0.01f, inv_leaf = 1.0f / leaf;  // the filter's rounding at voxel borders
+  // Reference: voxels numbered as first met in image order, sums in image order.
+  std::map<VoxelKey, size_t> index;
+  std::vector<Eigen::Vector4d> sums;
+  for (const auto& p : in) {
+    if (!std::isfinite(p.x)) continue;
+    const VoxelKey key{static_cast<int64_t>(std::floor(p.x * inv_leaf)),
+                       static_cast<int64_t>(std::floor(p.y * inv_leaf)),
+                       static_cast<int64_t>(std::floor(p.z * inv_leaf))};
+    const auto it = index.emplace(key, sums.size()).first;
+    if (it->second == sums.size()) sums.emplace_back(Eigen::Vector4d::Zero());
+    sums[it->second] += Eigen::Vector4d(p.x, p.y, p.z, 1.0);
+  }
+  ASSERT_GT(sums.size(), 100u);
+  for (const unsigned threads : {1u, 2u, 3u, 5u}) {
+    setWorkerThreads(threads);
+    Cloud out;
+    Preprocessor(PreprocessParams{leaf, 3.0f, 0.0f}).apply(in, out);
+    ASSERT_EQ(out.size(), sums.size()) << threads << " threads";
+    for (size_t i = 0; i < sums.size(); ++i) {
+      const double inv_count = 1.0 / sums[i].w();
+      ASSERT_EQ(out[i].x, static_cast<float>(sums[i].x() * inv_count)) << i << ", " << threads;
+      ASSERT_EQ(out[i].y, static_cast<float>(sums[i].y() * inv_count)) << i << ", " << threads;
+      ASSERT_EQ(out[i].z, static_cast<float>(sums[i].z() * inv_count)) << i << ", " << threads;
+    }
   }
   setWorkerThreads(0);
 }

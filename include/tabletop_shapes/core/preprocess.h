@@ -30,12 +30,14 @@ class Preprocessor {
     uint64_t key;
     double x, y, z;
     uint32_t count;
+    uint32_t first_pixel;  // the input index of the voxel's first point: its place in the output
   };
   // Open-addressing hash from voxel key to the voxel's running sum; reused between frames.
   class VoxelTable {
    public:
     void clear();  // keeps the last frame's size, so that a frame like it does not grow
-    uint32_t voxelOf(uint64_t key);  // inserts a voxel with an empty sum when new
+    // Inserts a voxel with an empty sum, first met at `pixel`, when new.
+    uint32_t voxelOf(uint64_t key, uint32_t pixel);
     size_t bytes() const;
     void release();              // gives back a table far larger than its voxels need
     std::vector<VoxelSum> sums;  // in order of first appearance: deterministic output
@@ -44,9 +46,14 @@ class Preprocessor {
     struct Slot {
       uint64_t key;
       uint32_t voxel;  // index into sums
+      uint32_t frame;  // the slot is in use when it is the table's frame_
     };
+    // A new voxel at `slot`, the empty slot its key's probe ended on.
+    uint32_t insert(uint64_t key, uint32_t pixel, size_t slot);
     void grow();
     std::vector<Slot> slots_;
+    // Counts clear()s: a frame's clear only moves it on, not 2-4 MB of slots written again.
+    uint32_t frame_ = 0;
   };
   template <typename PointT>
   void applyImpl(const pcl::PointCloud<PointT>& in, Cloud& out, ViewBounds* view);
@@ -56,15 +63,25 @@ class Preprocessor {
   template <typename PointT>
   void keyRows(const pcl::PointCloud<PointT>& in, int width, bool drop_flying, int first_row,
                int end_row, ViewBoundsGatherer::Band* view);
-  // Every kept point of the width x height image added to its voxel's sum, in image order.
+  // The voxels of one owner (one thread's share of the voxel space) and the voxels of the last
+  // two image rows' points it summed. Aligned: owners' vectors grow on different threads.
+  struct alignas(64) VoxelOwner {
+    VoxelTable table;
+    std::vector<uint32_t> row_voxels;
+  };
+  // Every kept point of the width x height image whose voxel `owner` of `owners` owns added to
+  // its voxel's sum, in image order.
   template <typename PointT>
-  void sumVoxels(const pcl::PointCloud<PointT>& in, int width, int height);
+  void sumOwnedVoxels(const pcl::PointCloud<PointT>& in, int width, int height, size_t owner,
+                      size_t owners);
+  // The owners' voxels' centroids into `out` in the order their voxels are first met, on
+  // `threads` threads in `pieces` pieces.
+  void writeCentroids(size_t owners, size_t pixels, size_t pieces, unsigned threads, Cloud& out);
   void releaseOversizedBuffers(size_t input_points);
 
   PreprocessParams params_;
-  VoxelTable table_;
-  std::vector<uint64_t> keys_;        // per input point; reused between frames
-  std::vector<uint32_t> row_voxels_;  // the voxels of the last two image rows' points
+  std::vector<VoxelOwner> owners_;  // reused between frames
+  std::vector<uint64_t> keys_;      // per input point; reused between frames
   ViewBoundsGatherer view_;
 };
 
