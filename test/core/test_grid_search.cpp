@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <set>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -99,6 +100,42 @@ TEST(GridSearch, UnsortedRadiusNeighboursAreThePairwiseSearchsSets) {
   search.forEachRadiusNeighbours(
       0.02, [&](int i, const pcl::Indices& neighbours) { shared_out[i] = neighbours; }, 2);
   EXPECT_EQ(shared_out, one_pass);
+}
+
+TEST(GridSearch, UnsortedNeighboursFollowTheIndicesOrderWhateverTheCellsSpanAndTheIndices) {
+  // A search over only some indices lists a cell's points by index, whether the indices come
+  // ascending or shuffled; the points span metres (hundreds of cells along each axis, a cell
+  // order of several radix digits) and every list is the pairwise search's set.
+  CloudPtr cloud = surfaceCloud();
+  for (int i = 0; i < 40; ++i) {
+    const float t = static_cast<float>(i);
+    cloud->push_back(Point(-3.0f + 0.15f * t, 2.5f - 0.11f * t, 0.5f + 0.13f * t));
+    cloud->push_back(Point(-3.0f + 0.15f * t + 0.004f, 2.5f - 0.11f * t, 0.5f + 0.13f * t));
+  }
+  pcl::Indices ascending;
+  for (size_t i = 0; i < cloud->size(); i += 1 + i % 3) ascending.push_back(static_cast<int>(i));
+  pcl::Indices shuffled = ascending;
+  std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(5));
+  std::map<int, pcl::Indices> lists[2];
+  for (int order = 0; order < 2; ++order) {
+    GridSearch<Point> search(0.02f, /*sorted=*/false);
+    search.setInputCloud(cloud,
+                         std::make_shared<const pcl::Indices>(order == 0 ? ascending : shuffled));
+    search.forEachRadiusNeighbours(
+        0.02, [&](int i, const pcl::Indices& neighbours) { lists[order][i] = neighbours; });
+  }
+  ASSERT_EQ(lists[0].size(), ascending.size() - 1);  // the NaN point has no list
+  EXPECT_EQ(lists[1], lists[0]);
+  const std::set<int> chosen(ascending.begin(), ascending.end());
+  for (const auto& [i, neighbours] : lists[0]) {
+    pcl::Indices expected;
+    for (const int j : bruteForce(*cloud, static_cast<size_t>(i), 0.02f))
+      if (chosen.count(j)) expected.push_back(j);
+    std::sort(expected.begin(), expected.end());
+    pcl::Indices found = neighbours;
+    std::sort(found.begin(), found.end());
+    EXPECT_EQ(found, expected) << "point " << i;
+  }
 }
 
 // Shared out among threads, the cells give every point the lists of one pass.
@@ -223,8 +260,12 @@ TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
   // radius links, whatever cells apart they lie.
   const CloudPtr cloud = surfaceCloud();
   const size_t finite_points = cloud->size() - 1;  // the last point is NaN
-  for (const float radius : {0.006f, 0.03f}) {
-    GridSearch<Point> search(radius <= 0.01f ? radius : 0.01f, false);
+  // Cells of the radius (sub-cells 2 x 2 x 2), of a third (no sub-cells: a cell's points are
+  // all closer than the radius), 1.67 radii (3 x 3 x 3 sub-cells), 2.5 radii (too large for
+  // sub-cells: every pair in a cell tested).
+  for (const auto& [cell, radius] : std::vector<std::pair<float, float>>{
+           {0.006f, 0.006f}, {0.01f, 0.03f}, {0.01f, 0.006f}, {0.015f, 0.006f}}) {
+    GridSearch<Point> search(cell, false);
     search.setInputCloud(cloud);
     // Reference: a union-find over every pair, components by smallest index.
     std::vector<size_t> parent(finite_points);

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 namespace tabletop_shapes {
@@ -79,6 +80,9 @@ class GridSearch : public pcl::search::Search<PointT> {
     int index;  // in the input cloud
   };
   uint64_t keyOf(int cx, int cy, int cz) const;
+  // Sorts (key, entry) pairs given in ascending index order by key, stably (then by index),
+  // keys within the occupied range low_ .. high_.
+  void sortByCell(std::vector<std::pair<uint64_t, Entry>>& keyed) const;
   const Cell* find(uint64_t key) const;
   // The cell of the run of points_ starting at `begin` (points_ is sorted by cell, so a run
   // is one cell's points) and the position just past the run.
