@@ -565,7 +565,8 @@ constexpr float kSubCellMargin = 0.99f;  // a sub-cell's diagonal below this sha
 }  // namespace
 
 template <typename PointT>
-std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius) const {
+std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius,
+                                                                  unsigned threads) const {
   std::vector<pcl::Indices> components;
   if (points_.empty() || !(radius >= 0.0)) return components;
   const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
@@ -601,98 +602,62 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
     ++split;
   }
   const int sub_cells = split * split * split;
-  std::vector<uint8_t> sub_of;      // sub-cell of each point of the cell
-  std::vector<uint32_t> by_sub;     // the cell's positions grouped by sub-cell
-  std::vector<uint32_t> sub_begin;  // start of each used sub-cell's group in by_sub
-  std::vector<uint8_t> used;        // the used sub-cells, ascending
-  uint32_t count[kMaxSubCells + 1];
-  for (size_t begin = 0; begin < points_.size();) {
-    const Run run = runAt(begin);
-    const size_t end = run.end;
-    if (split > kMaxSubCellSplit) {
-      for (size_t i = begin; i < end; ++i) {
-        for (size_t j = i + 1; j < end; ++j) {
-          if (close(i, j)) link(i, j);
-        }
-      }
-    } else {
-      const float scale = inv_cell_ * static_cast<float>(split);
-      auto subAxis = [&](float v, int c) {
-        const int64_t s = voxel_key::floorToInt(v * scale) - int64_t{c} * split;
-        return static_cast<int>(std::min<int64_t>(std::max<int64_t>(s, 0), split - 1));
-      };
-      sub_of.resize(end - begin);
-      std::fill(count, count + sub_cells + 1, 0u);
-      for (size_t i = begin; i < end; ++i) {
-        const Entry& e = points_[i];
-        const int s =
-            (subAxis(e.x, run.cx) * split + subAxis(e.y, run.cy)) * split + subAxis(e.z, run.cz);
-        sub_of[i - begin] = static_cast<uint8_t>(s);
-        ++count[s + 1];
-      }
-      used.clear();
-      sub_begin.clear();
-      for (int s = 0; s < sub_cells; ++s) {
-        if (count[s + 1] > 0) {
-          used.push_back(static_cast<uint8_t>(s));
-          sub_begin.push_back(count[s]);
-        }
-        count[s + 1] += count[s];
-      }
-      sub_begin.push_back(static_cast<uint32_t>(end - begin));
-      // Positions ascend within each group: its first is the smallest, the set's root.
-      by_sub.resize(end - begin);
-      for (size_t i = begin; i < end; ++i) by_sub[count[sub_of[i - begin]]++] = i;
-      for (size_t g = 0; g < used.size(); ++g) {
-        for (uint32_t k = sub_begin[g] + 1; k < sub_begin[g + 1]; ++k)
-          parent[by_sub[k]] = by_sub[sub_begin[g]];
-      }
-      for (size_t a = 0; a < used.size(); ++a) {
-        for (size_t b = a + 1; b < used.size(); ++b) {
-          if (root(by_sub[sub_begin[a]]) == root(by_sub[sub_begin[b]])) continue;
-          bool joined = false;
-          for (uint32_t k = sub_begin[a]; k < sub_begin[a + 1] && !joined; ++k) {
-            for (uint32_t l = sub_begin[b]; l < sub_begin[b + 1]; ++l) {
-              if (!close(by_sub[k], by_sub[l])) continue;
-              link(by_sub[k], by_sub[l]);
-              joined = true;
-              break;
-            }
+  // The cells of points_[first, last) (whole runs): their points' pairs.
+  auto linkWithinCells = [&](size_t first, size_t last) {
+    std::vector<uint8_t> sub_of;      // sub-cell of each point of the cell
+    std::vector<uint32_t> by_sub;     // the cell's positions grouped by sub-cell
+    std::vector<uint32_t> sub_begin;  // start of each used sub-cell's group in by_sub
+    std::vector<uint8_t> used;        // the used sub-cells, ascending
+    uint32_t count[kMaxSubCells + 1];
+    for (size_t begin = first; begin < last;) {
+      const Run run = runAt(begin);
+      const size_t end = run.end;
+      if (split > kMaxSubCellSplit) {
+        for (size_t i = begin; i < end; ++i) {
+          for (size_t j = i + 1; j < end; ++j) {
+            if (close(i, j)) link(i, j);
           }
         }
-      }
-    }
-    const uint32_t first = root(static_cast<uint32_t>(begin));
-    bool one_set = true;
-    for (size_t i = begin + 1; i < end && one_set; ++i)
-      one_set = root(static_cast<uint32_t>(i)) == first;
-    whole[begin] = one_set;
-    begin = end;
-  }
-  // Then each pair of neighbouring cells once: the cells at a lexicographically positive offset
-  // (the other half reach this cell from their side). Two whole cells need no pair once they
-  // are one set, and one close pair makes them one. The components do not depend on the order
-  // the links come in, nor on links within a set.
-  for (size_t begin = 0; begin < points_.size();) {
-    const Run run = runAt(begin);
-    const size_t end = run.end;
-    for (int x = 0; x <= reach; ++x) {
-      for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
-        for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
-          const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
-          if (nx > high_[0] || ny < low_[1] || ny > high_[1] || nz < low_[2] || nz > high_[2]) {
-            continue;
+      } else {
+        const float scale = inv_cell_ * static_cast<float>(split);
+        auto subAxis = [&](float v, int c) {
+          const int64_t s = voxel_key::floorToInt(v * scale) - int64_t{c} * split;
+          return static_cast<int>(std::min<int64_t>(std::max<int64_t>(s, 0), split - 1));
+        };
+        sub_of.resize(end - begin);
+        std::fill(count, count + sub_cells + 1, 0u);
+        for (size_t i = begin; i < end; ++i) {
+          const Entry& e = points_[i];
+          const int s =
+              (subAxis(e.x, run.cx) * split + subAxis(e.y, run.cy)) * split + subAxis(e.z, run.cz);
+          sub_of[i - begin] = static_cast<uint8_t>(s);
+          ++count[s + 1];
+        }
+        used.clear();
+        sub_begin.clear();
+        for (int s = 0; s < sub_cells; ++s) {
+          if (count[s + 1] > 0) {
+            used.push_back(static_cast<uint8_t>(s));
+            sub_begin.push_back(count[s]);
           }
-          const Cell* cell = find(keyOf(nx, ny, nz));
-          if (!cell) continue;
-          const bool both_whole = whole[begin] && whole[cell->begin];
-          if (both_whole && root(static_cast<uint32_t>(begin)) == root(cell->begin)) continue;
-          bool joined = false;
-          for (uint32_t j = cell->begin; j < cell->end && !joined; ++j) {
-            for (size_t i = begin; i < end; ++i) {
-              if (!close(i, j)) continue;
-              link(i, j);
-              if (both_whole) {
+          count[s + 1] += count[s];
+        }
+        sub_begin.push_back(static_cast<uint32_t>(end - begin));
+        // Positions ascend within each group: its first is the smallest, the set's root.
+        by_sub.resize(end - begin);
+        for (size_t i = begin; i < end; ++i) by_sub[count[sub_of[i - begin]]++] = i;
+        for (size_t g = 0; g < used.size(); ++g) {
+          for (uint32_t k = sub_begin[g] + 1; k < sub_begin[g + 1]; ++k)
+            parent[by_sub[k]] = by_sub[sub_begin[g]];
+        }
+        for (size_t a = 0; a < used.size(); ++a) {
+          for (size_t b = a + 1; b < used.size(); ++b) {
+            if (root(by_sub[sub_begin[a]]) == root(by_sub[sub_begin[b]])) continue;
+            bool joined = false;
+            for (uint32_t k = sub_begin[a]; k < sub_begin[a + 1] && !joined; ++k) {
+              for (uint32_t l = sub_begin[b]; l < sub_begin[b + 1]; ++l) {
+                if (!close(by_sub[k], by_sub[l])) continue;
+                link(by_sub[k], by_sub[l]);
                 joined = true;
                 break;
               }
@@ -700,8 +665,89 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
           }
         }
       }
+      const uint32_t cell_root = root(static_cast<uint32_t>(begin));
+      bool one_set = true;
+      for (size_t i = begin + 1; i < end && one_set; ++i)
+        one_set = root(static_cast<uint32_t>(i)) == cell_root;
+      whole[begin] = one_set;
+      begin = end;
     }
-    begin = end;
+  };
+  // Then each pair of neighbouring cells once: the cells at a lexicographically positive offset
+  // (the other half reach this cell from their side), of those with x in [x_low, x_high]. Two whole
+  // cells need no pair once they are one set, and one close pair makes them one. The components do
+  // not depend on the order the links come in, nor on links within a set.
+  auto linkNeighbourCells = [&](size_t first, size_t last, int x_low, int x_high) {
+    for (size_t begin = first; begin < last;) {
+      const Run run = runAt(begin);
+      const size_t end = run.end;
+      for (int x = 0; x <= reach; ++x) {
+        for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
+          for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
+            const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
+            if (nx < x_low || nx > x_high || ny < low_[1] || ny > high_[1] || nz < low_[2] ||
+                nz > high_[2]) {
+              continue;
+            }
+            const Cell* cell = find(keyOf(nx, ny, nz));
+            if (!cell) continue;
+            const bool both_whole = whole[begin] && whole[cell->begin];
+            if (both_whole && root(static_cast<uint32_t>(begin)) == root(cell->begin)) continue;
+            bool joined = false;
+            for (uint32_t j = cell->begin; j < cell->end && !joined; ++j) {
+              for (size_t i = begin; i < end; ++i) {
+                if (!close(i, j)) continue;
+                link(i, j);
+                if (both_whole) {
+                  joined = true;
+                  break;
+                }
+              }
+            }
+          }
+        }
+      }
+      begin = end;
+    }
+  };
+  // On two threads, two bands of cells along x (points_ is sorted by cell, x first, so each is
+  // a range of positions): each band's links join only its own positions, so the threads share
+  // no set; then the pairs across the border, on one thread.
+  const size_t n = points_.size();
+  const auto cellX = [&](size_t i) {
+    return static_cast<int>(voxel_key::floorToInt(points_[i].x * inv_cell_));
+  };
+  int border_x = cellX(n / 2);
+  auto firstAtX = [&](int x) {
+    size_t low = 0, high = n;  // the first position whose cell's x is >= x
+    while (low < high) {
+      const size_t middle = (low + high) / 2;
+      if (cellX(middle) < x)
+        low = middle + 1;
+      else
+        high = middle;
+    }
+    return low;
+  };
+  size_t border = firstAtX(border_x);
+  if (border == 0) border = firstAtX(++border_x);
+  if (threads < 2 || border == 0 || border >= n) {
+    linkWithinCells(0, n);
+    linkNeighbourCells(0, n, std::numeric_limits<int>::min(), high_[0]);
+  } else {
+    parallelFor(
+        2,
+        [&](size_t band) {
+          if (band == 0) {
+            linkWithinCells(0, border);
+            linkNeighbourCells(0, border, std::numeric_limits<int>::min(), border_x - 1);
+          } else {
+            linkWithinCells(border, n);
+            linkNeighbourCells(border, n, border_x, high_[0]);
+          }
+        },
+        2);
+    linkNeighbourCells(firstAtX(border_x - reach), border, border_x, high_[0]);
   }
   // Components numbered by their smallest input index.
   std::vector<int> smallest(points_.size(), std::numeric_limits<int>::max());

@@ -255,6 +255,21 @@ TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
   }
 }
 
+TEST(GridSearch, ConnectedComponentsLinkAcrossTheBandBorderOverSeveralCells) {
+  // A row of points 2.5 cm apart along x, linked at 3 cm on 1 cm cells: each link spans two or
+  // three cells, the one across the two threads' border too. A lone point 4 cm beyond stays apart.
+  Cloud row;
+  for (int i = 0; i < 21; ++i) row.push_back(Point(0.025f * static_cast<float>(i), 0.3f, 1.0f));
+  row.push_back(Point(0.54f, 0.3f, 1.0f));
+  GridSearch<Point> search(0.01f, false);
+  search.setInputCloud(std::make_shared<const Cloud>(row));
+  pcl::Indices first_21(21);
+  std::iota(first_21.begin(), first_21.end(), 0);
+  const std::vector<pcl::Indices> expected{first_21, {21}};
+  EXPECT_EQ(search.connectedComponents(0.03, 1), expected);
+  EXPECT_EQ(search.connectedComponents(0.03, 2), expected);
+}
+
 TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
   // Radii of one cell and of several (reach 1 and 3): each pair of points closer than the
   // radius links, whatever cells apart they lie.
@@ -291,5 +306,7 @@ TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
     EXPECT_GT(components.size(), 1u) << "radius " << radius;  // the sparse points stay apart
     EXPECT_LT(components.size(), finite_points / 10) << "radius " << radius;  // the surface links
     EXPECT_EQ(components, expected) << "radius " << radius;
+    // Two bands of cells linked at once, then their border: the same components.
+    EXPECT_EQ(search.connectedComponents(radius, 2), expected) << "radius " << radius;
   }
 }

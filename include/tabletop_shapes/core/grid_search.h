@@ -67,8 +67,9 @@ class GridSearch : public pcl::search::Search<PointT> {
   // distance < radius^2, as radiusSearch): the input indices of each, ascending, components in
   // the order of their smallest index, as pcl::extractEuclideanClusters finds them (before it
   // filters and sorts them by size). One pass over each point's neighbouring cells, without
-  // the result vectors of one radius search per point.
-  std::vector<pcl::Indices> connectedComponents(double radius) const;
+  // the result vectors of one radius search per point. threads > 1: two bands of cells linked
+  // at once, then the pairs across their border; the same components.
+  std::vector<pcl::Indices> connectedComponents(double radius, unsigned threads = 1) const;
 
  private:
   struct Cell {
