@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <optional>
 #include <numeric>
 #include <set>
 #include <unordered_map>
@@ -1165,10 +1166,21 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
   may_hold_a_stack =
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
-  ConvexParts convex_parts = convexParts(cluster, params);
-  const NearestOfEach nearest(cluster);
-  mergeSmallParts(nearest, min_points, convex_parts);
-  mergeUnseparatedParts(*cluster, nearest, table,
+  // The neighbour lists do not depend on the convex parts: with a core free (one pile on the
+  // table), they are found on it while PCL's supervoxels, serial, take the other.
+  ConvexParts convex_parts;
+  std::optional<NearestOfEach> nearest;
+  parallelFor(
+      2,
+      [&](size_t task) {
+        if (task == 0)
+          convex_parts = convexParts(cluster, params);
+        else
+          nearest.emplace(cluster);
+      },
+      freeWorkerThreads());
+  mergeSmallParts(*nearest, min_points, convex_parts);
+  mergeUnseparatedParts(*cluster, *nearest, table,
                         sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
