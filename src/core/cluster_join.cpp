@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -326,11 +327,16 @@ std::vector<CloudPtr> joinPartsHiddenInTheMiddle(std::vector<CloudPtr> clusters,
       const float bound = boxes[b].squaredExteriorDistance((*clusters[a])[i].getVector3fMap());
       order.emplace_back(kBoundSlack * bound, static_cast<int>(i));
     }
-    std::sort(order.begin(), order.end());
+    // A heap gives the points in the sorted order, and the scan stops after a few of them: a
+    // full sort cost more than the scan.
+    const auto later = std::greater<std::pair<float, int>>();
+    std::make_heap(order.begin(), order.end(), later);
     if (!slabs[b]) slabs[b] = std::make_unique<SlabNearest>(*clusters[b]);
     float best = std::numeric_limits<float>::max();
     int best_a = -1, best_b = -1;
-    for (const auto& [bound, i] : order) {
+    for (auto end = order.end(); end != order.begin(); --end) {
+      std::pop_heap(order.begin(), end, later);
+      const auto [bound, i] = *(end - 1);
       if (bound > best) break;
       SlabNearest::Hit hit;
       if (!slabs[b]->nearest((*clusters[a])[i].getVector3fMap(), best, hit) ||

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <optional>
 #include <numeric>
 #include <set>
 #include <unordered_map>
@@ -1165,10 +1166,21 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
   may_hold_a_stack =
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
-  ConvexParts convex_parts = convexParts(cluster, params);
-  const NearestOfEach nearest(cluster);
-  mergeSmallParts(nearest, min_points, convex_parts);
-  mergeUnseparatedParts(*cluster, nearest, table,
+  // The neighbour lists do not depend on the convex parts: with a core free (one pile on the
+  // table), they are found on it while PCL's supervoxels, serial, take the other.
+  ConvexParts convex_parts;
+  std::optional<NearestOfEach> nearest;
+  parallelFor(
+      2,
+      [&](size_t task) {
+        if (task == 0)
+          convex_parts = convexParts(cluster, params);
+        else
+          nearest.emplace(cluster);
+      },
+      freeWorkerThreads());
+  mergeSmallParts(*nearest, min_points, convex_parts);
+  mergeUnseparatedParts(*cluster, *nearest, table,
                         sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
 
   std::map<uint32_t, std::vector<int>> parts;
@@ -1486,27 +1498,38 @@ std::vector<CloudPtr> splitAtConcaveSeams(const CloudPtr& cluster, const Plane& 
     const float smear = sidewaysSmear(centroidOf(*cluster).norm(), params);
     // What may rest on a part or stand beside it: every object's points, else the cluster's.
     const Cloud& surroundings = scene ? *scene : *cluster;
-    for (const CloudPtr& stack_part : parts) {
-      // A pile LCCP did not part (a box lying across two) comes apart under its bridge first;
-      // its pieces are separate objects, so the joins leave the legs apart.
-      const std::vector<CloudPtr> bridge =
-          parts.size() == 1 && may_hold_a_stack
-              ? splitUnderABridge(stack_part, table, surroundings, min_points)
-              : std::vector<CloudPtr>{stack_part};
-      if (bridge.size() > 1) {
-        for (const CloudPtr& object : bridge) out.emplace_back(object, kSeparateObjects);
-        continue;
-      }
-      bool own_top_faces = false;
-      std::vector<int> parted_by_a_gap;
-      std::vector<CloudPtr> faces =
-          splitUnderTopFaces(stack_part, table, min_points, own_top_faces, parted_by_a_gap);
-      const std::vector<CloudPtr> objects =
-          joinTopsCutByAnObjectOnThem(std::move(faces), std::move(parted_by_a_gap), surroundings,
-                                      table, smear, stackEvidencePoints(params));
-      for (const CloudPtr& object : objects)
-        out.emplace_back(object, own_top_faces ? kSeparateObjects : -1);
-    }
+    // The stack's parts are split each on its own: on the free cores when the cluster has them
+    // (one pile on the table), the objects gathered in the parts' order.
+    std::vector<std::vector<std::pair<CloudPtr, int>>> objects_of_part(parts.size());
+    parallelFor(
+        parts.size(),
+        [&](size_t p) {
+          const CloudPtr& stack_part = parts[p];
+          std::vector<std::pair<CloudPtr, int>>& objects_here = objects_of_part[p];
+          // A pile LCCP did not part (a box lying across two) comes apart under its bridge
+          // first; its pieces are separate objects, so the joins leave the legs apart.
+          const std::vector<CloudPtr> bridge =
+              parts.size() == 1 && may_hold_a_stack
+                  ? splitUnderABridge(stack_part, table, surroundings, min_points)
+                  : std::vector<CloudPtr>{stack_part};
+          if (bridge.size() > 1) {
+            for (const CloudPtr& object : bridge)
+              objects_here.emplace_back(object, kSeparateObjects);
+            return;
+          }
+          bool own_top_faces = false;
+          std::vector<int> parted_by_a_gap;
+          std::vector<CloudPtr> faces =
+              splitUnderTopFaces(stack_part, table, min_points, own_top_faces, parted_by_a_gap);
+          const std::vector<CloudPtr> objects =
+              joinTopsCutByAnObjectOnThem(std::move(faces), std::move(parted_by_a_gap),
+                                          surroundings, table, smear, stackEvidencePoints(params));
+          for (const CloudPtr& object : objects)
+            objects_here.emplace_back(object, own_top_faces ? kSeparateObjects : -1);
+        },
+        freeWorkerThreads());
+    for (auto& objects_here : objects_of_part)
+      out.insert(out.end(), objects_here.begin(), objects_here.end());
   }
   return largestFirst(std::move(out), side_by_side);
 }

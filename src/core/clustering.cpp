@@ -36,7 +36,7 @@ std::vector<CloudPtr> extractClusters(const CloudConstPtr& cloud, const Clusteri
   const size_t min_size = static_cast<size_t>(std::max(1, params.min_size));
   const size_t max_size = static_cast<size_t>(std::max(1, params.max_size));
   std::vector<pcl::PointIndices> cluster_indices;
-  for (pcl::Indices& component : grid.connectedComponents(params.tolerance)) {
+  for (pcl::Indices& component : grid.connectedComponents(params.tolerance, freeWorkerThreads())) {
     if (component.size() < min_size || component.size() > max_size) continue;
     cluster_indices.emplace_back();
     cluster_indices.back().header = input->header;

@@ -14,6 +14,7 @@
 #include <memory>
 #include <mutex>
 #include <numeric>
+#include <utility>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -278,9 +279,14 @@ void GridSearch<PointT>::setInputCloud(const PointCloudConstPtr& cloud,
     keyed.push_back({keyOf(c[0], c[1], c[2]), Entry{p.x, p.y, p.z, index}});
   }
   // Sorted by cell, then by index: each cell's points are one range, in the cloud's order.
-  std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) {
-    return a.first != b.first ? a.first < b.first : a.second.index < b.second.index;
-  });
+  const bool ascending_indices = !indices || std::is_sorted(indices->begin(), indices->end());
+  if (ascending_indices) {
+    sortByCell(keyed);
+  } else {
+    std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first < b.first : a.second.index < b.second.index;
+    });
+  }
   points_.reserve(keyed.size());
   size_t cells = 0;
   for (size_t i = 0; i < keyed.size(); ++i) {
@@ -299,6 +305,50 @@ void GridSearch<PointT>::setInputCloud(const PointCloudConstPtr& cloud,
     table_[slot] = {keyed[begin].first, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)};
     begin = end;
   }
+}
+
+template <typename PointT>
+void GridSearch<PointT>::sortByCell(std::vector<std::pair<uint64_t, Entry>>& keyed) const {
+  // A stable least-significant-digit radix sort of the cells' numbers in the occupied box
+  // (x, then y, then z: the keys' order), digits of at most 11 bits: a few passes over the
+  // points instead of a comparison sort's n log n (13k points of a 16-object scene: 2 passes).
+  if (keyed.size() < 2) return;
+  const uint64_t axis_mask = (uint64_t{1} << voxel_key::kAxisBits) - 1;
+  uint64_t span[3], low[3];
+  for (int a = 0; a < 3; ++a) {
+    span[a] = static_cast<uint64_t>(int64_t{high_[a]} - low_[a] + 1);
+    low[a] = static_cast<uint64_t>(low_[a] + voxel_key::kAxisOffset);
+  }
+  std::vector<uint64_t> number(keyed.size());
+  for (size_t i = 0; i < keyed.size(); ++i) {
+    const uint64_t key = keyed[i].first;
+    const uint64_t x = (key >> (2 * voxel_key::kAxisBits)) - low[0];
+    const uint64_t y = ((key >> voxel_key::kAxisBits) & axis_mask) - low[1];
+    const uint64_t z = (key & axis_mask) - low[2];
+    number[i] = (x * span[1] + y) * span[2] + z;
+  }
+  const uint64_t largest = span[0] * span[1] * span[2] - 1;  // < 2^63: 21 bits per axis
+  int bits = 1;
+  while (bits < 64 && (largest >> bits) != 0) ++bits;
+  constexpr int kMaxDigitBits = 11;
+  const int passes = (bits + kMaxDigitBits - 1) / kMaxDigitBits;
+  const int digit_bits = (bits + passes - 1) / passes;
+  const uint64_t digit_mask = (uint64_t{1} << digit_bits) - 1;
+  std::vector<uint32_t> order(keyed.size()), moved(keyed.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::vector<uint32_t> start(size_t{1} << digit_bits);
+  for (int pass = 0; pass < passes; ++pass) {
+    const int shift = pass * digit_bits;
+    std::fill(start.begin(), start.end(), 0u);
+    for (const uint64_t n : number) ++start[(n >> shift) & digit_mask];
+    uint32_t sum = 0;
+    for (uint32_t& s : start) sum += std::exchange(s, sum);
+    for (const uint32_t i : order) moved[start[(number[i] >> shift) & digit_mask]++] = i;
+    order.swap(moved);
+  }
+  std::vector<std::pair<uint64_t, Entry>> sorted(keyed.size());
+  for (size_t k = 0; k < order.size(); ++k) sorted[k] = keyed[order[k]];
+  keyed.swap(sorted);
 }
 
 template <typename PointT>
@@ -680,8 +730,15 @@ void GridSearch<PointT>::forEachRadiusNeighbours(
   });
 }
 
+namespace {
+constexpr int kMaxSubCellSplit = 4;  // sub-cells per cell along an axis, at most
+constexpr int kMaxSubCells = kMaxSubCellSplit * kMaxSubCellSplit * kMaxSubCellSplit;
+constexpr float kSubCellMargin = 0.99f;  // a sub-cell's diagonal below this share of the radius
+}  // namespace
+
 template <typename PointT>
-std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius) const {
+std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius,
+                                                                  unsigned threads) const {
   std::vector<pcl::Indices> components;
   if (points_.empty() || !(radius >= 0.0)) return components;
   const float radius_sq = static_cast<float>(radius * radius);  // as radiusSearch
@@ -705,44 +762,74 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
   // First the pairs within each cell. A cell whose points are then one set is whole (marked at
   // its first position); it stays so, as sets only grow.
   std::vector<char> whole(points_.size(), 0);
-  for (size_t begin = 0; begin < points_.size();) {
-    const size_t end = runAt(begin).end;
-    for (size_t i = begin; i < end; ++i) {
-      for (size_t j = i + 1; j < end; ++j) {
-        if (close(i, j)) link(i, j);
-      }
-    }
-    const uint32_t first = root(static_cast<uint32_t>(begin));
-    bool one_set = true;
-    for (size_t i = begin + 1; i < end && one_set; ++i)
-      one_set = root(static_cast<uint32_t>(i)) == first;
-    whole[begin] = one_set;
-    begin = end;
+  // Sub-cells (a cell cut `split` times along each axis) whose diagonal is shorter than the
+  // radius, by a margin far beyond float rounding: a sub-cell's points are all closer than the
+  // radius, so they are one set without a distance test, and two sub-cells are one set after
+  // their first close pair. Most of a cell's pair tests go (a 2 cm cell of a 5 mm voxel grid
+  // holds ~10 points: 45 pairs, against at most 28 sub-cell pairs that mostly end at their
+  // first pair). Cells too large for 4 x 4 x 4 sub-cells test every pair.
+  int split = 1;
+  while (split <= kMaxSubCellSplit && cell_size_ / static_cast<float>(split) * std::sqrt(3.0f) >=
+                                          kSubCellMargin * static_cast<float>(radius)) {
+    ++split;
   }
-  // Then each pair of neighbouring cells once: the cells at a lexicographically positive offset
-  // (the other half reach this cell from their side). Two whole cells need no pair once they
-  // are one set, and one close pair makes them one. The components do not depend on the order
-  // the links come in, nor on links within a set.
-  for (size_t begin = 0; begin < points_.size();) {
-    const Run run = runAt(begin);
-    const size_t end = run.end;
-    for (int x = 0; x <= reach; ++x) {
-      for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
-        for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
-          const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
-          if (nx > high_[0] || ny < low_[1] || ny > high_[1] || nz < low_[2] || nz > high_[2]) {
-            continue;
+  const int sub_cells = split * split * split;
+  // The cells of points_[first, last) (whole runs): their points' pairs.
+  auto linkWithinCells = [&](size_t first, size_t last) {
+    std::vector<uint8_t> sub_of;      // sub-cell of each point of the cell
+    std::vector<uint32_t> by_sub;     // the cell's positions grouped by sub-cell
+    std::vector<uint32_t> sub_begin;  // start of each used sub-cell's group in by_sub
+    std::vector<uint8_t> used;        // the used sub-cells, ascending
+    uint32_t count[kMaxSubCells + 1];
+    for (size_t begin = first; begin < last;) {
+      const Run run = runAt(begin);
+      const size_t end = run.end;
+      if (split > kMaxSubCellSplit) {
+        for (size_t i = begin; i < end; ++i) {
+          for (size_t j = i + 1; j < end; ++j) {
+            if (close(i, j)) link(i, j);
           }
-          const Cell* cell = find(keyOf(nx, ny, nz));
-          if (!cell) continue;
-          const bool both_whole = whole[begin] && whole[cell->begin];
-          if (both_whole && root(static_cast<uint32_t>(begin)) == root(cell->begin)) continue;
-          bool joined = false;
-          for (uint32_t j = cell->begin; j < cell->end && !joined; ++j) {
-            for (size_t i = begin; i < end; ++i) {
-              if (!close(i, j)) continue;
-              link(i, j);
-              if (both_whole) {
+        }
+      } else {
+        const float scale = inv_cell_ * static_cast<float>(split);
+        auto subAxis = [&](float v, int c) {
+          const int64_t s = voxel_key::floorToInt(v * scale) - int64_t{c} * split;
+          return static_cast<int>(std::min<int64_t>(std::max<int64_t>(s, 0), split - 1));
+        };
+        sub_of.resize(end - begin);
+        std::fill(count, count + sub_cells + 1, 0u);
+        for (size_t i = begin; i < end; ++i) {
+          const Entry& e = points_[i];
+          const int s =
+              (subAxis(e.x, run.cx) * split + subAxis(e.y, run.cy)) * split + subAxis(e.z, run.cz);
+          sub_of[i - begin] = static_cast<uint8_t>(s);
+          ++count[s + 1];
+        }
+        used.clear();
+        sub_begin.clear();
+        for (int s = 0; s < sub_cells; ++s) {
+          if (count[s + 1] > 0) {
+            used.push_back(static_cast<uint8_t>(s));
+            sub_begin.push_back(count[s]);
+          }
+          count[s + 1] += count[s];
+        }
+        sub_begin.push_back(static_cast<uint32_t>(end - begin));
+        // Positions ascend within each group: its first is the smallest, the set's root.
+        by_sub.resize(end - begin);
+        for (size_t i = begin; i < end; ++i) by_sub[count[sub_of[i - begin]]++] = i;
+        for (size_t g = 0; g < used.size(); ++g) {
+          for (uint32_t k = sub_begin[g] + 1; k < sub_begin[g + 1]; ++k)
+            parent[by_sub[k]] = by_sub[sub_begin[g]];
+        }
+        for (size_t a = 0; a < used.size(); ++a) {
+          for (size_t b = a + 1; b < used.size(); ++b) {
+            if (root(by_sub[sub_begin[a]]) == root(by_sub[sub_begin[b]])) continue;
+            bool joined = false;
+            for (uint32_t k = sub_begin[a]; k < sub_begin[a + 1] && !joined; ++k) {
+              for (uint32_t l = sub_begin[b]; l < sub_begin[b + 1]; ++l) {
+                if (!close(by_sub[k], by_sub[l])) continue;
+                link(by_sub[k], by_sub[l]);
                 joined = true;
                 break;
               }
@@ -750,8 +837,89 @@ std::vector<pcl::Indices> GridSearch<PointT>::connectedComponents(double radius)
           }
         }
       }
+      const uint32_t cell_root = root(static_cast<uint32_t>(begin));
+      bool one_set = true;
+      for (size_t i = begin + 1; i < end && one_set; ++i)
+        one_set = root(static_cast<uint32_t>(i)) == cell_root;
+      whole[begin] = one_set;
+      begin = end;
     }
-    begin = end;
+  };
+  // Then each pair of neighbouring cells once: the cells at a lexicographically positive offset
+  // (the other half reach this cell from their side), of those with x in [x_low, x_high]. Two whole
+  // cells need no pair once they are one set, and one close pair makes them one. The components do
+  // not depend on the order the links come in, nor on links within a set.
+  auto linkNeighbourCells = [&](size_t first, size_t last, int x_low, int x_high) {
+    for (size_t begin = first; begin < last;) {
+      const Run run = runAt(begin);
+      const size_t end = run.end;
+      for (int x = 0; x <= reach; ++x) {
+        for (int y = x == 0 ? 0 : -reach; y <= reach; ++y) {
+          for (int z = x == 0 && y == 0 ? 1 : -reach; z <= reach; ++z) {
+            const int nx = run.cx + x, ny = run.cy + y, nz = run.cz + z;
+            if (nx < x_low || nx > x_high || ny < low_[1] || ny > high_[1] || nz < low_[2] ||
+                nz > high_[2]) {
+              continue;
+            }
+            const Cell* cell = find(keyOf(nx, ny, nz));
+            if (!cell) continue;
+            const bool both_whole = whole[begin] && whole[cell->begin];
+            if (both_whole && root(static_cast<uint32_t>(begin)) == root(cell->begin)) continue;
+            bool joined = false;
+            for (uint32_t j = cell->begin; j < cell->end && !joined; ++j) {
+              for (size_t i = begin; i < end; ++i) {
+                if (!close(i, j)) continue;
+                link(i, j);
+                if (both_whole) {
+                  joined = true;
+                  break;
+                }
+              }
+            }
+          }
+        }
+      }
+      begin = end;
+    }
+  };
+  // On two threads, two bands of cells along x (points_ is sorted by cell, x first, so each is
+  // a range of positions): each band's links join only its own positions, so the threads share
+  // no set; then the pairs across the border, on one thread.
+  const size_t n = points_.size();
+  const auto cellX = [&](size_t i) {
+    return static_cast<int>(voxel_key::floorToInt(points_[i].x * inv_cell_));
+  };
+  int border_x = cellX(n / 2);
+  auto firstAtX = [&](int x) {
+    size_t low = 0, high = n;  // the first position whose cell's x is >= x
+    while (low < high) {
+      const size_t middle = (low + high) / 2;
+      if (cellX(middle) < x)
+        low = middle + 1;
+      else
+        high = middle;
+    }
+    return low;
+  };
+  size_t border = firstAtX(border_x);
+  if (border == 0) border = firstAtX(++border_x);
+  if (threads < 2 || border == 0 || border >= n) {
+    linkWithinCells(0, n);
+    linkNeighbourCells(0, n, std::numeric_limits<int>::min(), high_[0]);
+  } else {
+    parallelFor(
+        2,
+        [&](size_t band) {
+          if (band == 0) {
+            linkWithinCells(0, border);
+            linkNeighbourCells(0, border, std::numeric_limits<int>::min(), border_x - 1);
+          } else {
+            linkWithinCells(border, n);
+            linkNeighbourCells(border, n, border_x, high_[0]);
+          }
+        },
+        2);
+    linkNeighbourCells(firstAtX(border_x - reach), border, border_x, high_[0]);
   }
   // Components numbered by their smallest input index.
   std::vector<int> smallest(points_.size(), std::numeric_limits<int>::max());

@@ -1,6 +1,7 @@
 #include "tabletop_shapes/core/table_edge.h"
 
 #include "tabletop_shapes/core/convex_polygon.h"
+#include "tabletop_shapes/core/parallel.h"
 
 #include <cstdio>
 #include <limits>
@@ -116,15 +117,19 @@ void rejectClustersOffTheTable(std::vector<CloudPtr>& clusters, const Plane& tab
                                float depth_noise_at_one_metre, float hull_margin,
                                const Eigen::Vector3f& eye, const ViewBounds* view,
                                std::vector<RejectedCluster>& rejected) {
+  // Each cluster on its own (one per core), kept or rejected in the clusters' order.
+  std::vector<std::string> reasons(clusters.size());
+  parallelFor(clusters.size(), [&](size_t c) {
+    reasons[c] = whyNotOnTheTable(*clusters[c], table, hull, depth_noise_at_one_metre, hull_margin,
+                                  eye, view);
+  });
   std::vector<CloudPtr> kept;
   kept.reserve(clusters.size());
-  for (CloudPtr& cluster : clusters) {
-    std::string reason =
-        whyNotOnTheTable(*cluster, table, hull, depth_noise_at_one_metre, hull_margin, eye, view);
-    if (reason.empty()) {
-      kept.push_back(std::move(cluster));
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    if (reasons[c].empty()) {
+      kept.push_back(std::move(clusters[c]));
     } else {
-      rejected.push_back({std::move(cluster), std::move(reason)});
+      rejected.push_back({std::move(clusters[c]), std::move(reasons[c])});
     }
   }
   clusters.swap(kept);

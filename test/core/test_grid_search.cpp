@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <set>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -99,6 +100,42 @@ TEST(GridSearch, UnsortedRadiusNeighboursAreThePairwiseSearchsSets) {
   search.forEachRadiusNeighbours(
       0.02, [&](int i, const pcl::Indices& neighbours) { shared_out[i] = neighbours; }, 2);
   EXPECT_EQ(shared_out, one_pass);
+}
+
+TEST(GridSearch, UnsortedNeighboursFollowTheIndicesOrderWhateverTheCellsSpanAndTheIndices) {
+  // A search over only some indices lists a cell's points by index, whether the indices come
+  // ascending or shuffled; the points span metres (hundreds of cells along each axis, a cell
+  // order of several radix digits) and every list is the pairwise search's set.
+  CloudPtr cloud = surfaceCloud();
+  for (int i = 0; i < 40; ++i) {
+    const float t = static_cast<float>(i);
+    cloud->push_back(Point(-3.0f + 0.15f * t, 2.5f - 0.11f * t, 0.5f + 0.13f * t));
+    cloud->push_back(Point(-3.0f + 0.15f * t + 0.004f, 2.5f - 0.11f * t, 0.5f + 0.13f * t));
+  }
+  pcl::Indices ascending;
+  for (size_t i = 0; i < cloud->size(); i += 1 + i % 3) ascending.push_back(static_cast<int>(i));
+  pcl::Indices shuffled = ascending;
+  std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(5));
+  std::map<int, pcl::Indices> lists[2];
+  for (int order = 0; order < 2; ++order) {
+    GridSearch<Point> search(0.02f, /*sorted=*/false);
+    search.setInputCloud(cloud,
+                         std::make_shared<const pcl::Indices>(order == 0 ? ascending : shuffled));
+    search.forEachRadiusNeighbours(
+        0.02, [&](int i, const pcl::Indices& neighbours) { lists[order][i] = neighbours; });
+  }
+  ASSERT_EQ(lists[0].size(), ascending.size() - 1);  // the NaN point has no list
+  EXPECT_EQ(lists[1], lists[0]);
+  const std::set<int> chosen(ascending.begin(), ascending.end());
+  for (const auto& [i, neighbours] : lists[0]) {
+    pcl::Indices expected;
+    for (const int j : bruteForce(*cloud, static_cast<size_t>(i), 0.02f))
+      if (chosen.count(j)) expected.push_back(j);
+    std::sort(expected.begin(), expected.end());
+    pcl::Indices found = neighbours;
+    std::sort(found.begin(), found.end());
+    EXPECT_EQ(found, expected) << "point " << i;
+  }
 }
 
 // Shared out among threads, the cells give every point the lists of one pass.
@@ -255,13 +292,32 @@ TEST(GridSearch, NearestKDistancesAmongEqualDistancesAreThoseOfAPairwiseSearch) 
   for (size_t i = 0; i < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
 }
 
+TEST(GridSearch, ConnectedComponentsLinkAcrossTheBandBorderOverSeveralCells) {
+  // A row of points 2.5 cm apart along x, linked at 3 cm on 1 cm cells: each link spans two or
+  // three cells, the one across the two threads' border too. A lone point 4 cm beyond stays apart.
+  Cloud row;
+  for (int i = 0; i < 21; ++i) row.push_back(Point(0.025f * static_cast<float>(i), 0.3f, 1.0f));
+  row.push_back(Point(0.54f, 0.3f, 1.0f));
+  GridSearch<Point> search(0.01f, false);
+  search.setInputCloud(std::make_shared<const Cloud>(row));
+  pcl::Indices first_21(21);
+  std::iota(first_21.begin(), first_21.end(), 0);
+  const std::vector<pcl::Indices> expected{first_21, {21}};
+  EXPECT_EQ(search.connectedComponents(0.03, 1), expected);
+  EXPECT_EQ(search.connectedComponents(0.03, 2), expected);
+}
+
 TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
   // Radii of one cell and of several (reach 1 and 3): each pair of points closer than the
   // radius links, whatever cells apart they lie.
   const CloudPtr cloud = surfaceCloud();
   const size_t finite_points = cloud->size() - 1;  // the last point is NaN
-  for (const float radius : {0.006f, 0.03f}) {
-    GridSearch<Point> search(radius <= 0.01f ? radius : 0.01f, false);
+  // Cells of the radius (sub-cells 2 x 2 x 2), of a third (no sub-cells: a cell's points are
+  // all closer than the radius), 1.67 radii (3 x 3 x 3 sub-cells), 2.5 radii (too large for
+  // sub-cells: every pair in a cell tested).
+  for (const auto& [cell, radius] : std::vector<std::pair<float, float>>{
+           {0.006f, 0.006f}, {0.01f, 0.03f}, {0.01f, 0.006f}, {0.015f, 0.006f}}) {
+    GridSearch<Point> search(cell, false);
     search.setInputCloud(cloud);
     // Reference: a union-find over every pair, components by smallest index.
     std::vector<size_t> parent(finite_points);
@@ -287,5 +343,7 @@ TEST(GridSearch, ConnectedComponentsAreThoseOfAPairwiseUnion) {
     EXPECT_GT(components.size(), 1u) << "radius " << radius;  // the sparse points stay apart
     EXPECT_LT(components.size(), finite_points / 10) << "radius " << radius;  // the surface links
     EXPECT_EQ(components, expected) << "radius " << radius;
+    // Two bands of cells linked at once, then their border: the same components.
+    EXPECT_EQ(search.connectedComponents(radius, 2), expected) << "radius " << radius;
   }
 }

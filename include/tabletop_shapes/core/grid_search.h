@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 namespace tabletop_shapes {
@@ -66,8 +67,9 @@ class GridSearch : public pcl::search::Search<PointT> {
   // distance < radius^2, as radiusSearch): the input indices of each, ascending, components in
   // the order of their smallest index, as pcl::extractEuclideanClusters finds them (before it
   // filters and sorts them by size). One pass over each point's neighbouring cells, without
-  // the result vectors of one radius search per point.
-  std::vector<pcl::Indices> connectedComponents(double radius) const;
+  // the result vectors of one radius search per point. threads > 1: two bands of cells linked
+  // at once, then the pairs across their border; the same components.
+  std::vector<pcl::Indices> connectedComponents(double radius, unsigned threads = 1) const;
 
  private:
   struct Cell {
@@ -79,6 +81,9 @@ class GridSearch : public pcl::search::Search<PointT> {
     int index;  // in the input cloud
   };
   uint64_t keyOf(int cx, int cy, int cz) const;
+  // Sorts (key, entry) pairs given in ascending index order by key, stably (then by index),
+  // keys within the occupied range low_ .. high_.
+  void sortByCell(std::vector<std::pair<uint64_t, Entry>>& keyed) const;
   const Cell* find(uint64_t key) const;
   // The cell of the run of points_ starting at `begin` (points_ is sorted by cell, so a run
   // is one cell's points) and the position just past the run.
