@@ -5,6 +5,8 @@
 // cone its radius grows linearly with the height above the table.
 #include "tabletop_shapes/core/cylinder_fit.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
+
 #include <Eigen/Dense>
 
 #ifdef __SSE2__
@@ -174,13 +176,7 @@ struct RootOfQuad {
     return (DoubleQuad)_mm256_sqrt_pd((__m256d)value);
   }
 };
-bool hasFourDoubleLanes() {
-  static const bool has_avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has_avx2;
-}
+bool hasFourDoubleLanes() { return cpuHasAvx2(); }
 #endif
 
 // Geometric residuals |p - c| - r(h) of points on a round wall: without heights a circle,

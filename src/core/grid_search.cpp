@@ -1,5 +1,6 @@
 #include "tabletop_shapes/core/grid_search.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
@@ -90,8 +91,7 @@ __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& 
 
 size_t keepAtMost(const std::vector<float>& values, float bound, float* kept) {
 #ifdef TABLETOP_SHAPES_PACK_LANES
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  if (avx2) return keepAtMostAvx2(values, bound, kept);
+  if (cpuHasAvx2()) return keepAtMostAvx2(values, bound, kept);
 #endif
   size_t count = 0;
   for (const float v : values) {
@@ -205,11 +205,7 @@ size_t nearIndices(const std::vector<float>& xs, const std::vector<float>& ys,
                    float qy, float qz, float radius_sq, int* near_indices,
                    std::vector<float>& squared) {
 #ifdef TABLETOP_SHAPES_PACK_LANES
-  static const bool has_avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  if (has_avx2) {
+  if (cpuHasAvx2()) {
     return nearIndicesInAvx2(xs, ys, zs, indices, qx, qy, qz, radius_sq, near_indices);
   }
 #endif

@@ -1,5 +1,6 @@
 #include "tabletop_shapes/core/normals.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/exp_lanes.h"
 #include "tabletop_shapes/core/grid_search.h"
 #include "tabletop_shapes/core/parallel.h"
@@ -170,11 +171,7 @@ __attribute__((target("avx2"))) size_t gatherEightAtATimeInAvx2(const Cloud& clo
 size_t gatherEightAtATime(const Cloud& cloud, const pcl::Indices& indices, float* xs, float* ys,
                           float* zs) {
 #ifdef TABLETOP_SHAPES_GATHER_LANES
-  static const bool has_avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  if (has_avx2) return gatherEightAtATimeInAvx2(cloud, indices, xs, ys, zs);
+  if (cpuHasAvx2()) return gatherEightAtATimeInAvx2(cloud, indices, xs, ys, zs);
 #endif
   return 0;
 }

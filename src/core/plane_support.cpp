@@ -1,5 +1,7 @@
 #include "tabletop_shapes/core/plane_support.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -133,11 +135,7 @@ __attribute__((target("avx2"))) int countInEightLanes(const PointColumns& column
 
 bool hasEightLanes() {
 #ifdef TABLETOP_SHAPES_EIGHT_LANES
-  static const bool has_avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has_avx2;
+  return cpuHasAvx2();
 #else
   return false;
 #endif
