@@ -3,11 +3,14 @@
 #include "tabletop_shapes/core/oni_recording.h"
 
 #include <OpenNI.h>
+#include <dlfcn.h>
+#include <link.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -24,6 +27,23 @@ std::mutex& runtimeMutex() {
 int& runtimeUsers() {
   static int count = 0;
   return count;
+}
+
+// OpenNI2 2.2 can still cancel a recording's file player thread as the recording closes (even
+// after letPlayerThreadStop) and unload that driver (libOniFile) in OpenNI::shutdown() while the
+// thread is unwinding: the process then died in the unloaded code (1 child run in ~125 of
+// test_openni2_camera, core dump: a cancelled thread in usleep, its caller unmapped). Marked
+// RTLD_NODELETE once OpenNI2 has loaded it, the player's code stays mapped until the process
+// ends; the handle is kept on purpose.
+void keepFilePlayerMapped() {
+  dl_iterate_phdr(
+      [](dl_phdr_info* info, size_t, void*) {
+        if (info->dlpi_name && std::strstr(info->dlpi_name, "/libOniFile.so")) {
+          dlopen(info->dlpi_name, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+        }
+        return 0;
+      },
+      nullptr);
 }
 
 // openni2_camera's mode numbers (see cfg/OpenNI2Driver.cfg); 0 = keep the device's mode.
@@ -312,6 +332,7 @@ OpenNI2Backend::OpenNI2Backend(std::string* error) {
     *error = std::string("OpenNI2 initialisation failed: ") + openni::OpenNI::getExtendedError();
     return;
   }
+  if (runtimeUsers() == 0) keepFilePlayerMapped();
   ++runtimeUsers();
   initialized_ = true;
 }
