@@ -19,10 +19,6 @@ namespace {
 // GCC's note that passing them without AVX changes the ABI does not apply.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
-// The inlier test of a plane on a lane's worth of points at a time (Float4, or eight floats where
-// the CPU has AVX2): distance below the threshold AND |cosine| of the point normal above the
-// threshold. Each lane does the float operations of the scalar test, so any width gives the same
-// inliers.
 // The integer lanes (comparison masks) of as many lanes as Floats.
 template <typename Floats>
 struct IntLanesOf;
@@ -30,6 +26,11 @@ template <>
 struct IntLanesOf<Float4> {
   using Type = Int4;
 };
+
+// The inlier test of a plane on a lane's worth of points at a time (Float4, or eight floats where
+// the CPU has AVX2): distance below the threshold AND |cosine| of the point normal above the
+// threshold. Each lane does the float operations of the scalar test, so any width gives the same
+// inliers.
 
 template <typename Floats>
 struct LanePlaneTest {
@@ -215,8 +216,12 @@ int PlaneSupport::collect(const Eigen::Vector3f& normal, float d, float distance
 int PlaneSupport::countWithAngleBound(const Eigen::Vector3f& normal, float d,
                                       float distance_threshold, float cos_threshold,
                                       double& angle_bound) {
-  const PointColumns columns{&points_.x.front()[0],  &points_.y.front()[0],  &points_.z.front()[0],
-                             &normals_.x.front()[0], &normals_.y.front()[0], &normals_.z.front()[0],
+  // data(), not front(): a PlaneSupport of no points has empty blocks.
+  const auto floats = [](const std::vector<Float4>& blocks) {
+    return reinterpret_cast<const float*>(blocks.data());
+  };
+  const PointColumns columns{floats(points_.x),   floats(points_.y),  floats(points_.z),
+                             floats(normals_.x),  floats(normals_.y), floats(normals_.z),
                              4 * points_.x.size()};
   double bound_sum = 0.0;
   int count = 0;
