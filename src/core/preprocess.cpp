@@ -206,13 +206,9 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
   // same decisions): finiteness, range, the left neighbour's flying pixel test (it clears most
   // points; the others take the scalar test of all neighbours), the view's extremes and the
   // voxel coordinates.
-  const __m128 zero = _mm_setzero_ps(), eye_xs = _mm_set1_ps(eye_x), eye_ys = _mm_set1_ps(eye_y),
-               eye_zs = _mm_set1_ps(eye_z), along_weights = _mm_set1_ps(along_weight),
-               cot_sqs = _mm_set1_ps(cot_sq), max_range_sqs = _mm_set1_ps(max_range_sq),
-               inv_leafs = _mm_set1_ps(inv_leaf), limits = _mm_set1_ps(limit),
-               sign = _mm_set1_ps(-0.0f), huge = _mm_set1_ps(std::numeric_limits<float>::max());
-  __m128 min_tan_x = huge, max_tan_x = _mm_sub_ps(zero, huge), min_tan_y = huge,
-         max_tan_y = max_tan_x, min_z = huge;
+  const __m128 most = _mm_set1_ps(std::numeric_limits<float>::max());  // no extreme yet
+  __m128 min_tan_x = most, max_tan_x = _mm_sub_ps(_mm_setzero_ps(), most), min_tan_y = most,
+         max_tan_y = max_tan_x, min_z = most;
 #endif
   auto keyRow = [&](int v) {
     const PointT* row = &in.points[static_cast<size_t>(v) * width];
@@ -229,17 +225,28 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
       if (first < width) view->add(first, row[first].x, row[first].y, row[first].z);
       if (last > first) view->add(last, row[last].x, row[last].y, row[last].z);
     }
+    // The constants and flags in the row's locals: the keys' stores go through __m128i, which
+    // may alias anything, and would have each one the lambda captures loaded again for every
+    // four pixels.
+    const __m128 zero = _mm_setzero_ps(), eye_xs = _mm_set1_ps(eye_x), eye_ys = _mm_set1_ps(eye_y),
+                 eye_zs = _mm_set1_ps(eye_z), along_weights = _mm_set1_ps(along_weight),
+                 cot_sqs = _mm_set1_ps(cot_sq), max_range_sqs = _mm_set1_ps(max_range_sq),
+                 inv_leafs = _mm_set1_ps(inv_leaf), limits = _mm_set1_ps(limit),
+                 sign = _mm_set1_ps(-0.0f), huge = _mm_set1_ps(std::numeric_limits<float>::max());
+    const bool with_view = view != nullptr, in_range_only = limit_range,
+               flying_test = drop_flying, with_grid = grid;
+    const int row_width = width;
     __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
     // The extremes in locals (registers), not in the accumulators the lambda captures.
     __m128 row_min_tan_x = min_tan_x, row_max_tan_x = max_tan_x, row_min_tan_y = min_tan_y,
            row_max_tan_y = max_tan_y, row_min_z = min_z;
-    for (; u + 4 <= width; u += 4) {
+    for (; u + 4 <= row_width; u += 4) {
       Float4 lanes_x, lanes_y, lanes_z;
       coordinatesOfFour(row + u, lanes_x, lanes_y, lanes_z);
       const __m128 x = (__m128)lanes_x, y = (__m128)lanes_y, z = (__m128)lanes_z;
       const __m128 finite = _mm_cmpeq_ps(
           _mm_add_ps(_mm_add_ps(_mm_sub_ps(x, x), _mm_sub_ps(y, y)), _mm_sub_ps(z, z)), zero);
-      if (view) {
+      if (with_view) {
         const __m128 valid = _mm_and_ps(finite, _mm_cmpgt_ps(z, zero));
         const __m128 tan_x = _mm_div_ps(x, z), tan_y = _mm_div_ps(y, z);
         auto pick = [&](__m128 value, __m128 otherwise) {
@@ -252,7 +259,7 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
         row_min_z = _mm_min_ps(row_min_z, pick(z, huge));
       }
       __m128 kept = finite;
-      if (limit_range) {
+      if (in_range_only) {
         const __m128 range_sq =
             _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, x), _mm_mul_ps(y, y)), _mm_mul_ps(z, z));
         kept = _mm_and_ps(kept, _mm_cmple_ps(range_sq, max_range_sqs));
@@ -266,7 +273,7 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
                    qz = _mm_move_ss(shifted_z, _mm_shuffle_ps(left_z, left_z, 0xff));
       left_x = x, left_y = y, left_z = z;
       int kept_lanes = _mm_movemask_ps(kept);
-      if (drop_flying && kept_lanes) {
+      if (flying_test && kept_lanes) {
         const __m128 sx = _mm_sub_ps(x, eye_xs), sy = _mm_sub_ps(y, eye_ys),
                      sz = _mm_sub_ps(z, eye_zs);
         const __m128 sight_sq =
@@ -287,7 +294,7 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
           if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
         }
       }
-      if (!grid) {
+      if (!with_grid) {
         for (int lane = 0; lane < 4; ++lane) {
           keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
         }
