@@ -118,7 +118,11 @@ uint32_t Preprocessor::VoxelTable::insert(uint64_t key, uint32_t pixel, size_t s
   }
   const uint32_t voxel = static_cast<uint32_t>(sums.size());
   slots_[slot] = {key, voxel, frame_};
-  sums.push_back(VoxelSum{key, 0.0, 0.0, 0.0, 0, pixel});
+  // Written in place, field by field: a VoxelSum built on the stack and copied in was read back
+  // across its narrower stores, a failed store forwarding on every new voxel.
+  VoxelSum& sum = sums.emplace_back();  // zeros
+  sum.key = key;
+  sum.first_pixel = pixel;
   return voxel;
 }
 
