@@ -1032,12 +1032,16 @@ std::vector<TopFace> topFaces(const Cloud& cluster, const std::vector<float>& he
 std::vector<int> underWhichTop(const std::vector<TopFace>& faces, const std::vector<float>& heights,
                                const std::vector<Eigen::Vector2f>& footprints) {
   std::vector<int> face_of(heights.size(), 0);
+  // Each outline's edges once, not for every point (the same distances, bit for bit).
+  std::vector<PolygonEdges> outlines;
+  outlines.reserve(faces.size());
+  for (const TopFace& face : faces) outlines.emplace_back(face.outline);
   for (size_t i = 0; i < heights.size(); ++i) {
     float best = -std::numeric_limits<float>::infinity();
     bool best_over = false;
     for (size_t f = 0; f < faces.size(); ++f) {
       const bool over = faces[f].height >= heights[i] - 0.5f * kTopFaceStep;
-      const float inside = insideDistance(faces[f].outline, footprints[i]);
+      const float inside = outlines[f].insideDistance(footprints[i]);
       if ((over && !best_over) || (over == best_over && inside > best)) {
         best = inside;
         best_over = over;
