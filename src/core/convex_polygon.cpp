@@ -168,27 +168,39 @@ bool segmentMeetsPolygon(const std::vector<Eigen::Vector2f>& hull, const Eigen::
 }
 
 PolygonEdges::PolygonEdges(const std::vector<Eigen::Vector2f>& hull) {
-  edges_.reserve(hull.size());
+  int lane = 0;
   for (size_t i = 0; i < hull.size(); ++i) {
     const Eigen::Vector2f edge = hull[(i + 1) % hull.size()] - hull[i];
     const float length = edge.norm();
     if (length <= 0.0f) continue;  // counts for nothing, as in insideDistance
-    edges_.push_back({hull[i], edge, length});
+    if (lane == 0) edges_.emplace_back();
+    FourEdges& four = edges_.back();
+    for (int copy = lane; copy < 4; ++copy) {  // this edge in its lane and the ones after
+      four.from_x[copy] = hull[i].x(), four.from_y[copy] = hull[i].y();
+      four.along_x[copy] = edge.x(), four.along_y[copy] = edge.y();
+      four.length[copy] = length;
+    }
+    lane = (lane + 1) % 4;
   }
 }
 
 float PolygonEdges::insideDistance(const Eigen::Vector2f& q) const {
-  float nearest = std::numeric_limits<float>::max();
-  for (const Edge& edge : edges_)
-    nearest = std::min(nearest, leftOf(edge.from, edge.along, edge.length, q));
-  return nearest;
+  // Each lane's minimum as std::min's (a NaN distance never lowers it), then the lanes'.
+  Float4 nearest = broadcast(std::numeric_limits<float>::max());
+  const Float4 qx = broadcast(q.x()), qy = broadcast(q.y());
+  for (const FourEdges& four : edges_) {
+    const Float4 distance = leftOfFour(four, qx, qy);
+    nearest = distance < nearest ? distance : nearest;
+  }
+  return std::min(std::min(nearest[0], nearest[1]), std::min(nearest[2], nearest[3]));
 }
 
 bool PolygonEdges::insideBy(const Eigen::Vector2f& q, float margin) const {
   // The minimum exceeds the margin when every edge's distance does (a NaN one never lowers
   // the minimum, nor stops here).
-  for (const Edge& edge : edges_) {
-    if (leftOf(edge.from, edge.along, edge.length, q) <= margin) return false;
+  const Float4 qx = broadcast(q.x()), qy = broadcast(q.y()), limit = broadcast(margin);
+  for (const FourEdges& four : edges_) {
+    if (lanesOf(leftOfFour(four, qx, qy) <= limit) != 0u) return false;
   }
   return std::numeric_limits<float>::max() > margin;
 }

@@ -1020,17 +1020,20 @@ struct LyingSection {
   std::vector<double> along, end_disc;
 };
 
-LyingSection sectionAcross(const Vec3d& axis, const Vec3d& up, double table_d,
-                           const std::vector<Vec3d>& positions, const std::vector<Vec3d>& normals) {
+// `heights`: each point's up.dot(position) + table_d, the same along every axis.
+LyingSection sectionAcross(const Vec3d& axis, const Vec3d& up, const std::vector<Vec3d>& positions,
+                           const std::vector<Vec3d>& normals, const std::vector<double>& heights) {
   LyingSection out;
   out.axis = axis;
   out.across = up.cross(axis);
   out.along.resize(positions.size());
+  out.section.reserve(positions.size());
   for (size_t i = 0; i < positions.size(); ++i) {
     out.along[i] = axis.dot(positions[i]);
-    if (normals[i].dot(axis) >= kEndDiscMinCos) out.end_disc.push_back(out.along[i]);
-    if (std::abs(normals[i].dot(axis)) >= kEndDiscMinCos) continue;
-    out.section.emplace_back(out.across.dot(positions[i]), up.dot(positions[i]) + table_d);
+    const double along_normal = normals[i].dot(axis);
+    if (along_normal >= kEndDiscMinCos) out.end_disc.push_back(out.along[i]);
+    if (std::abs(along_normal) >= kEndDiscMinCos) continue;
+    out.section.emplace_back(out.across.dot(positions[i]), heights[i]);
   }
   return out;
 }
@@ -1115,15 +1118,16 @@ ShapeFit lyingCylinderAlong(const LyingSection& lying, const Vec3d& up, double t
 // The horizontal direction most nearly perpendicular to the side-wall normals (those not
 // within kEndDiscMinCos of `axis`): a start axis tilted by an end disc's normals or by the
 // footprint's proportions, made the wall's own. Three rounds settle it to a degree or better.
-Vec3d sideWallAxis(Vec3d axis, const Vec3d& up, const std::vector<Vec3d>& normals) {
+// `horizontals`: each normal's coordinates along e1 = up.unitOrthogonal() and e2 = up x e1.
+Vec3d sideWallAxis(Vec3d axis, const Vec3d& up, const std::vector<Vec3d>& normals,
+                   const std::vector<Vec2d>& horizontals) {
   const Vec3d e1 = up.unitOrthogonal(), e2 = up.cross(e1);
   for (int round = 0; round < 3; ++round) {
     Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
     int side = 0;
-    for (const Vec3d& n : normals) {
-      if (std::abs(n.dot(axis)) >= kEndDiscMinCos) continue;
-      const Vec2d horizontal(n.dot(e1), n.dot(e2));
-      scatter += horizontal * horizontal.transpose();
+    for (size_t i = 0; i < normals.size(); ++i) {
+      if (std::abs(normals[i].dot(axis)) >= kEndDiscMinCos) continue;
+      scatter += horizontals[i] * horizontals[i].transpose();
       ++side;
     }
     if (side < kMinSidePoints) break;
@@ -1146,6 +1150,8 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
   const Vec3d up = table.normal.cast<double>() / normal_length;
   const double table_d = table.d / normal_length;
   std::vector<Vec3d> positions, normals;
+  positions.reserve(object.size());
+  normals.reserve(object.size());
   Vec3d centroid = Vec3d::Zero();
   // Axis candidates, horizontal: the principal directions of the normals' horizontal parts
   // (across the axis on the side wall, along it on an end disc) and of the points' footprint
@@ -1172,6 +1178,13 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
     point_scatter += offset * offset.transpose();
   }
   const Vec3d e1 = up.unitOrthogonal(), e2 = up.cross(e1);
+  // What every start axis's section and refinement reads of each point alike.
+  std::vector<double> heights(positions.size());
+  std::vector<Vec2d> horizontals(normals.size());
+  for (size_t i = 0; i < positions.size(); ++i) {
+    heights[i] = up.dot(positions[i]) + table_d;
+    horizontals[i] = Vec2d(normals[i].dot(e1), normals[i].dot(e2));
+  }
   // Each start axis and its side-wall refinement: smoothed normals near an occluding edge pull
   // the refinement off by a few degrees too (on a real can 23 cm long, 3.7 degrees smeared its
   // section 4 mm RMS), so the circle that follows its side wall most closely decides.
@@ -1185,7 +1198,7 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
     // The axis points towards the camera (the origin), so the end disc the camera may see is
     // the solid's "top" (distanceToVisibleRoundSurface).
     if (axis.dot(-centroid) < 0.0) axis = -axis;
-    LyingSection lying = sectionAcross(axis, up, table_d, positions, normals);
+    LyingSection lying = sectionAcross(axis, up, positions, normals, heights);
     const double spread = sectionSpread(lying);
     sections.emplace_back(spread, std::move(lying));
   };
@@ -1198,7 +1211,7 @@ ShapeFit fitLyingCylinder(const NormalCloud& object, const Plane& table,
       const Vec3d start =
           (principal.eigenvectors()(0, k) * e1 + principal.eigenvectors()(1, k) * e2).normalized();
       tryAxis(start);
-      tryAxis(sideWallAxis(start, up, normals));
+      tryAxis(sideWallAxis(start, up, normals, horizontals));
     }
   }
   // The most circular sections get the full fit; of those that fit, the one that follows its

@@ -70,14 +70,12 @@ template <typename Real>
   std::memcpy(values, &lanes, sizeof lanes);
 }
 
-// The lanes of a float vector in doubles, each added to the one four places on (exact).
-[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(FloatLanes lanes) {
-  using Half = float __attribute__((vector_size(kLaneBytes / 2)));
-  Half low, high;
-  std::memcpy(&low, &lanes, sizeof low);
-  std::memcpy(&high, reinterpret_cast<const char*>(&lanes) + sizeof low, sizeof high);
-  return __builtin_convertvector(low, LanesOf<double>) +
-         __builtin_convertvector(high, LanesOf<double>);
+// The lanes of a float vector in doubles, each added to the one four places on (exact). Written
+// lane by lane, which GCC 12 makes two 4-lane conversions and an add in the AVX2 clone; its
+// __builtin_convertvector of the two halves took 13 instructions (2-lane conversions and inserts).
+[[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(FloatLanes l) {
+  return LanesOf<double>{double{l[0]} + double{l[4]}, double{l[1]} + double{l[5]},
+                         double{l[2]} + double{l[6]}, double{l[3]} + double{l[7]}};
 }
 [[gnu::always_inline]] inline LanesOf<double> foldedInDoubles(LanesOf<double> lanes) {
   return lanes;
@@ -331,28 +329,34 @@ template <int kOrder, typename Real>
     for (int b = 0; b <= a; ++b) normal_matrix(a, b) = moment_sums[Poly::kEntryMoment[a][b]];
   }
   // Cholesky of the lower triangle in place, then the two triangular solves: a fixed size the
-  // compiler unrolls (Eigen's LLT runs its blocked loops for a 6 x 6 matrix).
+  // compiler unrolls (Eigen's LLT runs its blocked loops for a 6 x 6 matrix), the inner loops
+  // too (a pragma unrolls only the loop it stands before: they were loops of 1-5 turns).
   double* x = right_side.data();
 #pragma GCC unroll 15
   for (int j = 0; j < kTerms; ++j) {
     double diagonal = normal_matrix(j, j);
+#pragma GCC unroll 15
     for (int k = 0; k < j; ++k) diagonal -= normal_matrix(j, k) * normal_matrix(j, k);
     if (!(diagonal > 0.0)) return false;
     const double pivot = std::sqrt(diagonal);
     normal_matrix(j, j) = pivot;
+#pragma GCC unroll 15
     for (int i = j + 1; i < kTerms; ++i) {
       double entry = normal_matrix(i, j);
+#pragma GCC unroll 15
       for (int k = 0; k < j; ++k) entry -= normal_matrix(i, k) * normal_matrix(j, k);
       normal_matrix(i, j) = entry / pivot;
     }
   }
 #pragma GCC unroll 15
   for (int i = 0; i < kTerms; ++i) {
+#pragma GCC unroll 15
     for (int k = 0; k < i; ++k) x[i] -= normal_matrix(i, k) * x[k];
     x[i] /= normal_matrix(i, i);
   }
 #pragma GCC unroll 15
   for (int i = kTerms - 1; i >= 0; --i) {
+#pragma GCC unroll 15
     for (int k = i + 1; k < kTerms; ++k) x[i] -= normal_matrix(k, i) * x[k];
     x[i] /= normal_matrix(i, i);
   }
@@ -381,13 +385,15 @@ template <int kOrder, typename Real>
   FrameCoordinates<Real>& frame = near.frame<Real>();
   if (frame.u.size() < near.padded) frame.resize(near.padded);  // grown only
   // The arrays in locals: the stores (memcpy) may alias anything, the vectors' members included.
+  // (The query point too: read through `near` it was loaded again in each turn.)
   const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
+  const float query_x = near.query[0], query_y = near.query[1], query_z = near.query[2];
   Real *weights = frame.weight.data(), *us = frame.u.data(), *vs = frame.v.data(),
        *heights = frame.height.data();
   for (size_t k = 0, padded = near.padded; k < padded; k += kLanesOf<Real>) {
-    const Lanes x = (offsetLanes<Real>(xs, k, near.query[0]) - at[0]) * inverse_radius;
-    const Lanes y = (offsetLanes<Real>(ys, k, near.query[1]) - at[1]) * inverse_radius;
-    const Lanes z = (offsetLanes<Real>(zs, k, near.query[2]) - at[2]) * inverse_radius;
+    const Lanes x = (offsetLanes<Real>(xs, k, query_x) - at[0]) * inverse_radius;
+    const Lanes y = (offsetLanes<Real>(ys, k, query_y) - at[1]) * inverse_radius;
+    const Lanes z = (offsetLanes<Real>(zs, k, query_z) - at[2]) * inverse_radius;
     const Lanes exponent = -(x * x + y * y + z * z);  // -d^2 / r^2
     if constexpr (std::is_same_v<Real, float>) {
       storeLanes(weights + k, expLanes(exponent));

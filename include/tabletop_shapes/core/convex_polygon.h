@@ -47,22 +47,31 @@ bool segmentMeetsPolygon(const std::vector<Eigen::Vector2f>& hull, const Eigen::
 
 // A convex polygon's edges with their lengths, for many tests against one polygon (the table's
 // hull against every point of a frame): the same values as insideDistance without its square
-// root per edge and test.
+// root per edge and test, four edges at a time.
 class PolygonEdges {
  public:
   PolygonEdges() = default;
   explicit PolygonEdges(const std::vector<Eigen::Vector2f>& hull);
-  // insideDistance(hull, q), bit for bit.
+  // insideDistance(hull, q), bit for bit (but for the sign of a zero).
   float insideDistance(const Eigen::Vector2f& q) const;
-  // insideDistance(hull, q) > margin, stopping at the first edge that q is not that far inside.
+  // insideDistance(hull, q) > margin, stopping at the first four edges that q is not that far
+  // inside of.
   bool insideBy(const Eigen::Vector2f& q, float margin) const;
 
  private:
-  struct Edge {
-    Eigen::Vector2f from, along;  // along: to the next vertex
-    float length;
+  // Four edges, one per lane: each starts at `from` and runs `along` to the next vertex.
+  struct FourEdges {
+    Float4 from_x, from_y, along_x, along_y, length;
   };
-  std::vector<Edge> edges_;  // of non-zero length
+  // Of non-zero length, the last four padded with copies of the last edge (a repeated edge
+  // changes neither a minimum nor a test of every edge).
+  std::vector<FourEdges> edges_;
+  // q's distance from each of the four edges' lines, positive on its left (leftOf's float
+  // operations, lane by lane).
+  static Float4 leftOfFour(const FourEdges& edges, Float4 qx, Float4 qy) {
+    return (edges.along_x * (qy - edges.from_y) - edges.along_y * (qx - edges.from_x)) /
+           edges.length;
+  }
 };
 
 }  // namespace tabletop_shapes
