@@ -106,33 +106,50 @@ size_t keepAtMost(const std::vector<float>& values, float bound, float* kept) {
 }
 
 #ifdef TABLETOP_SHAPES_PACK_LANES
+// The lanes of the block of eight values loaded at `at_block` for the values from `first` on
+// (at_block <= first: the last block of n >= 8 values, moved back to end at n, holds a few
+// values seen already in its first lanes).
+inline int newLanes(size_t first, size_t at_block) { return (0xff << (first - at_block)) & 0xff; }
+
 // smallestValues' split eight values at a time: those whose bin (min(v * scale, last_bin)
 // truncated, the same float product and clamp as its bins) is below `bin` appended to `below`,
 // those in `bin` to `boundary`, both in the values' order, each list's lanes moved together by
-// kLeftPack's permutation (each list needs room for 8 more than it receives). Its scalar loop
-// cost 16 instructions a value, a third of the selection.
+// kLeftPack's permutation (each list needs room for 8 more than it receives; n >= 8). Its scalar
+// loop cost 16 instructions a value, a third of the selection.
 __attribute__((target("avx2"))) void splitAtBinAvx2(const float* v, size_t n, float scale,
                                                     float last_bin, uint8_t bin, float* below,
                                                     size_t& taken, float* boundary,
                                                     size_t& at_boundary) {
   const __m256 times = _mm256_set1_ps(scale), clamp = _mm256_set1_ps(last_bin);
   const __m256 low = _mm256_set1_ps(bin), high = _mm256_set1_ps(bin + 1.0f);
-  size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    const __m256 values = _mm256_loadu_ps(v + j);
+  auto split = [&](size_t at_block, int lanes) __attribute__((target("avx2"))) {
+    const __m256 values = _mm256_loadu_ps(v + at_block);
     const __m256 t = _mm256_min_ps(_mm256_mul_ps(values, times), clamp);
     const __m256 under = _mm256_cmp_ps(t, low, _CMP_LT_OQ);
     const __m256 at = _mm256_andnot_ps(under, _mm256_cmp_ps(t, high, _CMP_LT_OQ));
-    taken += packLanes(values, _mm256_movemask_ps(under), below + taken);
-    at_boundary += packLanes(values, _mm256_movemask_ps(at), boundary + at_boundary);
-  }
-  for (; j < n; ++j) {
-    const float t = std::min(v[j] * scale, last_bin);
-    below[taken] = v[j];
-    taken += t < bin;
-    boundary[at_boundary] = v[j];
-    at_boundary += t >= bin && t < bin + 1.0f;
-  }
+    taken += packLanes(values, _mm256_movemask_ps(under) & lanes, below + taken);
+    at_boundary += packLanes(values, _mm256_movemask_ps(at) & lanes, boundary + at_boundary);
+  };
+  size_t j = 0;
+  for (; j + 8 <= n; j += 8) split(j, 0xff);
+  if (j < n) split(n - 8, newLanes(j, n - 8));  // the last block ends at n
+}
+
+// How many of the n >= 8 values lie in the bins below `bin` (min(v * scale, last_bin) < bin,
+// as splitAtBinAvx2 tells them), eight at a time.
+__attribute__((target("avx2"))) size_t countInBinsBelowAvx2(const float* v, size_t n, float scale,
+                                                            float last_bin, float bin) {
+  const __m256 times = _mm256_set1_ps(scale), clamp = _mm256_set1_ps(last_bin);
+  const __m256 limit = _mm256_set1_ps(bin);
+  auto count = [&](size_t at_block, int lanes) __attribute__((target("avx2"))) {
+    const __m256 t = _mm256_min_ps(_mm256_mul_ps(_mm256_loadu_ps(v + at_block), times), clamp);
+    return static_cast<size_t>(
+        __builtin_popcount(_mm256_movemask_ps(_mm256_cmp_ps(t, limit, _CMP_LT_OQ)) & lanes));
+  };
+  size_t counted = 0, j = 0;
+  for (; j + 8 <= n; j += 8) counted += count(j, 0xff);
+  if (j < n) counted += count(n - 8, newLanes(j, n - 8));  // the last block ends at n
+  return counted;
 }
 #endif
 
@@ -140,7 +157,7 @@ __attribute__((target("avx2"))) void splitAtBinAvx2(const float* v, size_t n, fl
 // allocation or zero filling per point).
 struct SelectionBuffers {
   std::vector<uint8_t> bins;
-  std::vector<float> boundary;
+  std::vector<float> below, boundary;
 };
 
 // The `wanted` smallest of `values` (squared distances, at least `wanted` of them) as `smallest`
@@ -164,37 +181,52 @@ float smallestValues(const std::vector<float>& values, size_t wanted, float boun
     std::copy(all.begin(), all.begin() + wanted, smallest.begin());
     return all[wanted - 1];
   }
-  if (buffers.bins.size() < n) buffers.bins.resize(n), buffers.boundary.resize(n + 8);
-  uint8_t* bins = buffers.bins.data();
-  // Two loops: the first one vectorised.
+  if (buffers.bins.size() < n) {
+    buffers.bins.resize(n), buffers.below.resize(n + 8), buffers.boundary.resize(n + 8);
+  }
   const float* v = values.data();
-  for (size_t j = 0; j < n; ++j)
-    bins[j] = static_cast<uint8_t>(std::min(v[j] * scale, kBins - 1.0f));
-  uint32_t counts[kBins] = {};
-  for (size_t j = 0; j < n; ++j) ++counts[bins[j]];
-  uint8_t bin = 0;
-  size_t below = 0;
-  while (below + counts[bin] < wanted) below += counts[bin++];
-  // Branch-free: each value is written to both lists, and a list's end moves past it when the
-  // value belongs there (`taken` stays below `wanted`: the bins below hold fewer); room for 8
-  // more in both for splitAtBinAvx2.
-  smallest.resize(wanted + 8);
-  float* boundary = buffers.boundary.data();
+  const float last_bin = kBins - 1.0f;
+  // The values in the bins below the wanted-th value's to `below` (fewer than `wanted`), those
+  // in its bin to `boundary`; room for 8 more in both for splitAtBinAvx2.
+  float *below = buffers.below.data(), *boundary = buffers.boundary.data();
   size_t taken = 0, at_boundary = 0;
 #ifdef TABLETOP_SHAPES_PACK_LANES
-  if (cpuHasAvx2()) {
-    splitAtBinAvx2(v, n, scale, kBins - 1.0f, bin, smallest.data(), taken, boundary, at_boundary);
+  if (cpuHasAvx2() && n >= 8) {
+    // The wanted-th value's bin (the first whose values and those below are at least `wanted`)
+    // by bisection, five counts eight values at a time: fewer instructions than the histogram's
+    // ~11 a value.
+    int low = 0, high = kBins - 1;
+    while (low < high) {
+      const int middle = (low + high) / 2;
+      if (countInBinsBelowAvx2(v, n, scale, last_bin, middle + 1.0f) >= wanted) {
+        high = middle;
+      } else {
+        low = middle + 1;
+      }
+    }
+    splitAtBinAvx2(v, n, scale, last_bin, static_cast<uint8_t>(low), below, taken, boundary,
+                   at_boundary);
   } else
 #endif
   {
+    uint8_t* bins = buffers.bins.data();
+    // Two loops: the first one vectorised.
+    for (size_t j = 0; j < n; ++j) bins[j] = static_cast<uint8_t>(std::min(v[j] * scale, last_bin));
+    uint32_t counts[kBins] = {};
+    for (size_t j = 0; j < n; ++j) ++counts[bins[j]];
+    uint8_t bin = 0;
+    size_t in_lower_bins = 0;
+    while (in_lower_bins + counts[bin] < wanted) in_lower_bins += counts[bin++];
+    // Branch-free: each value is written to both lists, and a list's end moves past it when the
+    // value belongs there.
     for (size_t j = 0; j < n; ++j) {
-      smallest[taken] = values[j];
+      below[taken] = values[j];
       taken += bins[j] < bin;
       boundary[at_boundary] = values[j];
       at_boundary += bins[j] == bin;
     }
   }
-  smallest.resize(wanted);
+  std::copy(below, below + taken, smallest.begin());
   const size_t needed = wanted - taken;
   std::nth_element(boundary, boundary + (needed - 1), boundary + at_boundary);
   std::copy(boundary, boundary + needed, smallest.begin() + taken);
