@@ -4,7 +4,6 @@
 #include "tabletop_shapes/core/parallel.h"
 #include "tabletop_shapes/core/voxel_key.h"
 
-#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 
 #include <algorithm>
@@ -68,6 +67,15 @@ constexpr auto kLeftPack = [] {
 // together by kLeftPack's permutation), else one at a time
 // (each written, the end moving past it when it is kept): a fifth of the outlier removal's
 // instructions went to this loop over each point's ~300 block candidates.
+// The lanes of `values` set in the 8-bit `mask`, in order, stored at `to` (8 lanes written);
+// how many.
+__attribute__((target("avx2"))) inline size_t packLanes(__m256 values, int mask, float* to) {
+  const __m256i order =
+      _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(kLeftPack[mask])));
+  _mm256_storeu_ps(to, _mm256_permutevar8x32_ps(values, order));
+  return static_cast<size_t>(__builtin_popcount(mask));
+}
+
 __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& values, float bound,
                                                       float* kept) {
   const size_t n = values.size();
@@ -75,11 +83,7 @@ __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& 
   size_t count = 0, j = 0;
   for (; j + 8 <= n; j += 8) {
     const __m256 v = _mm256_loadu_ps(values.data() + j);
-    const int mask = _mm256_movemask_ps(_mm256_cmp_ps(v, limit, _CMP_LE_OQ));
-    const __m256i order =
-        _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(kLeftPack[mask])));
-    _mm256_storeu_ps(kept + count, _mm256_permutevar8x32_ps(v, order));
-    count += static_cast<size_t>(__builtin_popcount(mask));
+    count += packLanes(v, _mm256_movemask_ps(_mm256_cmp_ps(v, limit, _CMP_LE_OQ)), kept + count);
   }
   for (; j < n; ++j) {
     kept[count] = values[j];
@@ -101,11 +105,59 @@ size_t keepAtMost(const std::vector<float>& values, float bound, float* kept) {
   return count;
 }
 
+#ifdef TABLETOP_SHAPES_PACK_LANES
+// The lanes of the block of eight values loaded at `at_block` for the values from `first` on
+// (at_block <= first: the last block of n >= 8 values, moved back to end at n, holds a few
+// values seen already in its first lanes).
+inline int newLanes(size_t first, size_t at_block) { return (0xff << (first - at_block)) & 0xff; }
+
+// smallestValues' split eight values at a time: those whose bin (min(v * scale, last_bin)
+// truncated, the same float product and clamp as its bins) is below `bin` appended to `below`,
+// those in `bin` to `boundary`, both in the values' order, each list's lanes moved together by
+// kLeftPack's permutation (each list needs room for 8 more than it receives; n >= 8). Its scalar
+// loop cost 16 instructions a value, a third of the selection.
+__attribute__((target("avx2"))) void splitAtBinAvx2(const float* v, size_t n, float scale,
+                                                    float last_bin, uint8_t bin, float* below,
+                                                    size_t& taken, float* boundary,
+                                                    size_t& at_boundary) {
+  const __m256 times = _mm256_set1_ps(scale), clamp = _mm256_set1_ps(last_bin);
+  const __m256 low = _mm256_set1_ps(bin), high = _mm256_set1_ps(bin + 1.0f);
+  auto split = [&](size_t at_block, int lanes) __attribute__((target("avx2"))) {
+    const __m256 values = _mm256_loadu_ps(v + at_block);
+    const __m256 t = _mm256_min_ps(_mm256_mul_ps(values, times), clamp);
+    const __m256 under = _mm256_cmp_ps(t, low, _CMP_LT_OQ);
+    const __m256 at = _mm256_andnot_ps(under, _mm256_cmp_ps(t, high, _CMP_LT_OQ));
+    taken += packLanes(values, _mm256_movemask_ps(under) & lanes, below + taken);
+    at_boundary += packLanes(values, _mm256_movemask_ps(at) & lanes, boundary + at_boundary);
+  };
+  size_t j = 0;
+  for (; j + 8 <= n; j += 8) split(j, 0xff);
+  if (j < n) split(n - 8, newLanes(j, n - 8));  // the last block ends at n
+}
+
+// How many of the n >= 8 values lie in the bins below `bin` (min(v * scale, last_bin) < bin,
+// as splitAtBinAvx2 tells them), eight at a time.
+__attribute__((target("avx2"))) size_t countInBinsBelowAvx2(const float* v, size_t n, float scale,
+                                                            float last_bin, float bin) {
+  const __m256 times = _mm256_set1_ps(scale), clamp = _mm256_set1_ps(last_bin);
+  const __m256 limit = _mm256_set1_ps(bin);
+  auto count = [&](size_t at_block, int lanes) __attribute__((target("avx2"))) {
+    const __m256 t = _mm256_min_ps(_mm256_mul_ps(_mm256_loadu_ps(v + at_block), times), clamp);
+    return static_cast<size_t>(
+        __builtin_popcount(_mm256_movemask_ps(_mm256_cmp_ps(t, limit, _CMP_LT_OQ)) & lanes));
+  };
+  size_t counted = 0, j = 0;
+  for (; j + 8 <= n; j += 8) counted += count(j, 0xff);
+  if (j < n) counted += count(n - 8, newLanes(j, n - 8));  // the last block ends at n
+  return counted;
+}
+#endif
+
 // Buffers of smallestValues, kept between its calls (growing only, never cleared: no
 // allocation or zero filling per point).
 struct SelectionBuffers {
   std::vector<uint8_t> bins;
-  std::vector<float> boundary;
+  std::vector<float> below, boundary;
 };
 
 // The `wanted` smallest of `values` (squared distances, at least `wanted` of them) as `smallest`
@@ -129,27 +181,52 @@ float smallestValues(const std::vector<float>& values, size_t wanted, float boun
     std::copy(all.begin(), all.begin() + wanted, smallest.begin());
     return all[wanted - 1];
   }
-  if (buffers.bins.size() < n) buffers.bins.resize(n), buffers.boundary.resize(n);
-  uint8_t* bins = buffers.bins.data();
-  // Two loops: the first one vectorised.
-  const float* v = values.data();
-  for (size_t j = 0; j < n; ++j)
-    bins[j] = static_cast<uint8_t>(std::min(v[j] * scale, kBins - 1.0f));
-  uint32_t counts[kBins] = {};
-  for (size_t j = 0; j < n; ++j) ++counts[bins[j]];
-  uint8_t bin = 0;
-  size_t below = 0;
-  while (below + counts[bin] < wanted) below += counts[bin++];
-  // Branch-free: each value is written to both lists, and a list's end moves past it when the
-  // value belongs there (`taken` stays below `wanted`: the bins below hold fewer).
-  float* boundary = buffers.boundary.data();
-  size_t taken = 0, at_boundary = 0;
-  for (size_t j = 0; j < n; ++j) {
-    smallest[taken] = values[j];
-    taken += bins[j] < bin;
-    boundary[at_boundary] = values[j];
-    at_boundary += bins[j] == bin;
+  if (buffers.bins.size() < n) {
+    buffers.bins.resize(n), buffers.below.resize(n + 8), buffers.boundary.resize(n + 8);
   }
+  const float* v = values.data();
+  const float last_bin = kBins - 1.0f;
+  // The values in the bins below the wanted-th value's to `below` (fewer than `wanted`), those
+  // in its bin to `boundary`; room for 8 more in both for splitAtBinAvx2.
+  float *below = buffers.below.data(), *boundary = buffers.boundary.data();
+  size_t taken = 0, at_boundary = 0;
+#ifdef TABLETOP_SHAPES_PACK_LANES
+  if (cpuHasAvx2() && n >= 8) {
+    // The wanted-th value's bin (the first whose values and those below are at least `wanted`)
+    // by bisection, five counts eight values at a time: fewer instructions than the histogram's
+    // ~11 a value.
+    int low = 0, high = kBins - 1;
+    while (low < high) {
+      const int middle = (low + high) / 2;
+      if (countInBinsBelowAvx2(v, n, scale, last_bin, middle + 1.0f) >= wanted) {
+        high = middle;
+      } else {
+        low = middle + 1;
+      }
+    }
+    splitAtBinAvx2(v, n, scale, last_bin, static_cast<uint8_t>(low), below, taken, boundary,
+                   at_boundary);
+  } else
+#endif
+  {
+    uint8_t* bins = buffers.bins.data();
+    // Two loops: the first one vectorised.
+    for (size_t j = 0; j < n; ++j) bins[j] = static_cast<uint8_t>(std::min(v[j] * scale, last_bin));
+    uint32_t counts[kBins] = {};
+    for (size_t j = 0; j < n; ++j) ++counts[bins[j]];
+    uint8_t bin = 0;
+    size_t in_lower_bins = 0;
+    while (in_lower_bins + counts[bin] < wanted) in_lower_bins += counts[bin++];
+    // Branch-free: each value is written to both lists, and a list's end moves past it when the
+    // value belongs there.
+    for (size_t j = 0; j < n; ++j) {
+      below[taken] = values[j];
+      taken += bins[j] < bin;
+      boundary[at_boundary] = values[j];
+      at_boundary += bins[j] == bin;
+    }
+  }
+  std::copy(below, below + taken, smallest.begin());
   const size_t needed = wanted - taken;
   std::nth_element(boundary, boundary + (needed - 1), boundary + at_boundary);
   std::copy(boundary, boundary + needed, smallest.begin() + taken);
@@ -515,16 +592,15 @@ void GridSearch<PointT>::forEachNearestK(
     unsigned threads) const {
   if (k <= 0 || points_.empty()) return;
   const size_t wanted = static_cast<size_t>(k);
-  // A k-d tree for the isolated points (below); it finds the same distances (FLANN sums the
-  // squares in the same order). Built once, at the first such point, and shared by the threads
-  // (its searches only read it).
-  std::unique_ptr<pcl::KdTreeFLANN<PointT>> fallback;
-  std::once_flag fallback_built;
+  // The occupied cells for the isolated points (below): listed once, at the first such point,
+  // and shared by the threads (they only read them).
+  OccupiedCells occupied;
+  std::once_flag occupied_listed;
   // Whole runs (cells) per part, so that each point sees the same previous point as in one pass.
   auto nearestInPart = [&](size_t first, size_t last) {
     std::vector<float> xs, ys, zs, block_squared, squared, nearest;
     SelectionBuffers selection;
-    pcl::Indices fallback_indices;
+    CellsByRing by_ring;
     // The previous point of the same cell and its k-th distance: the k nearest of q lie within
     // that distance plus |q - previous| (triangle inequality), a ball far smaller than the
     // block on a surface, so the selection below runs on half the candidates.
@@ -573,20 +649,101 @@ void GridSearch<PointT>::forEachNearestK(
             smallestValues(squared, wanted, reach * reach, nearest, selection);
           } else {
             // Fewer than k points in the block: an isolated point (flying pixels, a far
-            // edge), whose rings would run through many empty cells before k points turn up.
-            std::call_once(fallback_built, [&] {
-              fallback = std::make_unique<pcl::KdTreeFLANN<PointT>>();
-              fallback->setInputCloud(this->input_, this->indices_);
-            });
-            PointT point;
-            point.x = q.x, point.y = q.y, point.z = q.z;
-            fallback->nearestKSearch(point, k, fallback_indices, nearest);
+            // edge), whose rings run through many empty cells before k points turn up: taken
+            // from the occupied cells. The same distances as the k-d tree over the input used
+            // here before, whose building cost ~900 instructions a point for ~1 point in 60.
+            std::call_once(occupied_listed, [&] { occupied = occupiedCells(); });
+            nearestByRings(q, wanted, occupied, by_ring, squared, nearest);
           }
           if (ascending) std::sort(nearest.begin(), nearest.end());
           visit(q.index, nearest);
         });
   };
   forEachPart(threads, nearestInPart);
+}
+
+template <typename PointT>
+typename GridSearch<PointT>::OccupiedCells GridSearch<PointT>::occupiedCells() const {
+  OccupiedCells cells;
+  for (size_t begin = 0; begin < points_.size();) {
+    const Run run = runAt(begin);
+    cells.x.push_back(run.cx), cells.y.push_back(run.cy), cells.z.push_back(run.cz);
+    cells.begin.push_back(static_cast<uint32_t>(begin));
+    cells.end.push_back(static_cast<uint32_t>(run.end));
+    begin = run.end;
+  }
+  return cells;
+}
+
+template <typename PointT>
+void GridSearch<PointT>::orderByRing(const OccupiedCells& cells, int x, int y, int z,
+                                     CellsByRing& by_ring) const {
+  by_ring.x = x, by_ring.y = y, by_ring.z = z, by_ring.valid = true;
+  const size_t n = cells.x.size();
+  std::vector<int>& ring = by_ring.ring;
+  ring.resize(n);
+  const int *cx = cells.x.data(), *cy = cells.y.data(), *cz = cells.z.data();
+  int* r = ring.data();
+  int last_ring = 0;
+  for (size_t j = 0; j < n; ++j) {
+    r[j] = std::max(std::max(std::abs(cx[j] - x), std::abs(cy[j] - y)), std::abs(cz[j] - z));
+    last_ring = std::max(last_ring, r[j]);
+  }
+  // A counting sort by ring.
+  std::vector<uint32_t>& start = by_ring.ring_start;
+  start.assign(static_cast<size_t>(last_ring) + 2, 0u);
+  for (size_t j = 0; j < n; ++j) ++start[static_cast<size_t>(r[j]) + 1];
+  for (size_t s = 1; s < start.size(); ++s) start[s] += start[s - 1];
+  by_ring.order.resize(n);
+  std::vector<uint32_t> next(start.begin(), start.end() - 1);
+  for (size_t j = 0; j < n; ++j) by_ring.order[next[r[j]]++] = static_cast<uint32_t>(j);
+}
+
+template <typename PointT>
+void GridSearch<PointT>::nearestByRings(const Entry& q, size_t wanted, const OccupiedCells& cells,
+                                        CellsByRing& by_ring, std::vector<float>& found,
+                                        std::vector<float>& nearest) const {
+  const float fx = q.x * inv_cell_, fy = q.y * inv_cell_, fz = q.z * inv_cell_;
+  const int cx = static_cast<int>(voxel_key::floorToInt(fx));
+  const int cy = static_cast<int>(voxel_key::floorToInt(fy));
+  const int cz = static_cast<int>(voxel_key::floorToInt(fz));
+  if (!by_ring.valid || by_ring.x != cx || by_ring.y != cy || by_ring.z != cz) {
+    orderByRing(cells, cx, cy, cz, by_ring);
+  }
+  // As nearestKSearch: after ring r every point closer than r + inset cells has been seen.
+  const float inset = std::min({fx - cx, cx + 1 - fx, fy - cy, cy + 1 - fy, fz - cz, cz + 1 - fz});
+  // Once k are found, only the k smallest so far and the points nearer than the k-th of them
+  // are kept (no other can be among the k nearest): the rings reaching a distant k-th
+  // neighbour hold thousands of points.
+  found.clear();
+  float kth = std::numeric_limits<float>::infinity();
+  const float cell_squared = cell_size_ * cell_size_;
+  for (size_t r = 0; r + 1 < by_ring.ring_start.size(); ++r) {
+    for (uint32_t o = by_ring.ring_start[r]; o < by_ring.ring_start[r + 1]; ++o) {
+      const uint32_t c = by_ring.order[o];
+      // A cell all farther than the k-th found (its gap from q along each axis, in cells; 1e-3
+      // slack for the rounding of the cell units) holds none of the k nearest.
+      const float gx = std::max({0.0f, cells.x[c] - fx, fx - (cells.x[c] + 1)});
+      const float gy = std::max({0.0f, cells.y[c] - fy, fy - (cells.y[c] + 1)});
+      const float gz = std::max({0.0f, cells.z[c] - fz, fz - (cells.z[c] + 1)});
+      if ((gx * gx + gy * gy + gz * gz) * cell_squared * 0.999f > kth) continue;
+      for (uint32_t i = cells.begin[c]; i < cells.end[c]; ++i) {
+        const Entry& e = points_[i];
+        const float dx = e.x - q.x, dy = e.y - q.y, dz = e.z - q.z;
+        const float d = dx * dx + dy * dy + dz * dz;
+        if (d < kth) found.push_back(d);
+      }
+    }
+    if (found.size() < wanted) continue;
+    if (found.size() > wanted || kth == std::numeric_limits<float>::infinity()) {
+      std::nth_element(found.begin(), found.begin() + (wanted - 1), found.end());
+      found.resize(wanted);
+      kth = found[wanted - 1];
+    }
+    const float covered = (static_cast<float>(r) + inset) * cell_size_;
+    if (kth <= covered * covered) break;
+  }
+  nearest.assign(found.begin(), found.begin() + std::min(wanted, found.size()));
 }
 
 template <typename PointT>

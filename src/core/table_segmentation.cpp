@@ -15,16 +15,17 @@
 #include <atomic>
 #include <cstdio>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <exception>
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <optional>
 #include <random>
-#include <thread>
 
 #ifdef __SSE__
 #include <xmmintrin.h>
@@ -752,52 +753,84 @@ std::vector<Candidate> findPlanes(const PlaneSearchSample& sample, const TablePa
     }
   };
   const bool judge_aside = workerThreads() > 1;
-  std::vector<std::unique_ptr<Judged>> found;  // in the order found
-  std::vector<std::thread> judges;
-  struct JoinAll {  // also when the search throws
-    std::vector<std::thread>& threads;
-    void operator()() {
-      for (std::thread& thread : threads) {
-        if (thread.joinable()) thread.join();
+  // In the order found; with judge_aside, appended under queue_mutex and judged in that order
+  // by judgeFound beside the search (on the pool's threads: starting a thread per plane cost
+  // ~50 us, 2.5 times a frame).
+  std::vector<std::unique_ptr<Judged>> found;
+  std::mutex queue_mutex;
+  std::condition_variable queued;
+  bool searched = false;
+  auto judgeFound = [&] {
+    for (size_t next = 0;; ++next) {
+      Judged* judged = nullptr;
+      {
+        std::unique_lock<std::mutex> lock(queue_mutex);
+        queued.wait(lock, [&] { return searched || next < found.size(); });
+        if (next >= found.size()) return;
+        judged = found[next].get();
       }
-    }
-    ~JoinAll() { (*this)(); }
-  } join_judges{judges};
-  const size_t min_inliers = std::max<size_t>(
-      3, (static_cast<size_t>(std::max(0, params.min_inliers)) + stride - 1) / stride);
-  std::vector<Plane> found_before;
-  for (int round = 0; round < params.max_planes && remaining.size() >= min_inliers; ++round) {
-    auto judged = std::make_unique<Judged>();
-    Candidate& candidate = judged->candidate;
-    candidate.stride = static_cast<int>(stride);
-    if (stride > 1) candidate.frame = &sample.frame();
-    candidate.found_before = found_before;
-    if (!ransacPlane(cloud, remaining, params, constraint, rng, candidate.plane,
-                     candidate.inliers)) {
-      break;
-    }
-    if (candidate.inliers.size() < min_inliers) break;  // later planes are smaller still
-    found_before.push_back(candidate.plane);
-    // Made ahead only on a thread of its own: on one thread they would only be made sooner.
-    judged->check_as_support =
-        check_as_support && judge_aside &&
-        std::all_of(found.begin(), found.end(), [&](const std::unique_ptr<Judged>& before) {
-          return candidate.plane.d < before->candidate.plane.d;
-        });
-    if (judge_aside) {
-      judges.emplace_back(judge, std::ref(*judged));
-    } else {
       judge(*judged);
     }
-    // Remove the inliers (both index lists are sorted).
-    std::vector<int> rest;
-    rest.reserve(remaining.size() - candidate.inliers.size());
-    std::set_difference(remaining.begin(), remaining.end(), candidate.inliers.begin(),
-                        candidate.inliers.end(), std::back_inserter(rest));
-    remaining.swap(rest);
-    found.push_back(std::move(judged));
+  };
+  const size_t min_inliers = std::max<size_t>(
+      3, (static_cast<size_t>(std::max(0, params.min_inliers)) + stride - 1) / stride);
+  auto search = [&] {
+    struct Searched {  // also when the search throws: the judging then ends
+      std::mutex& mutex;
+      std::condition_variable& queued;
+      bool& searched;
+      ~Searched() {
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          searched = true;
+        }
+        queued.notify_all();
+      }
+    } searched_at_end{queue_mutex, queued, searched};
+    std::vector<Plane> found_before;
+    for (int round = 0; round < params.max_planes && remaining.size() >= min_inliers; ++round) {
+      auto judged = std::make_unique<Judged>();
+      Candidate& candidate = judged->candidate;
+      candidate.stride = static_cast<int>(stride);
+      if (stride > 1) candidate.frame = &sample.frame();
+      candidate.found_before = found_before;
+      if (!ransacPlane(cloud, remaining, params, constraint, rng, candidate.plane,
+                       candidate.inliers)) {
+        break;
+      }
+      if (candidate.inliers.size() < min_inliers) break;  // later planes are smaller still
+      found_before.push_back(candidate.plane);
+      // Made ahead only beside the search: on one thread they would only be made sooner.
+      judged->check_as_support =
+          check_as_support && judge_aside &&
+          std::all_of(found.begin(), found.end(), [&](const std::unique_ptr<Judged>& before) {
+            return candidate.plane.d < before->candidate.plane.d;
+          });
+      Judged& to_judge = *judged;
+      if (judge_aside) {
+        {
+          std::lock_guard<std::mutex> lock(queue_mutex);
+          found.push_back(std::move(judged));
+        }
+        queued.notify_all();
+      } else {
+        judge(to_judge);
+        found.push_back(std::move(judged));
+      }
+      // Remove the inliers (both index lists are sorted).
+      std::vector<int> rest;
+      rest.reserve(remaining.size() - candidate.inliers.size());
+      std::set_difference(remaining.begin(), remaining.end(), candidate.inliers.begin(),
+                          candidate.inliers.end(), std::back_inserter(rest));
+      remaining.swap(rest);
+    }
+  };
+  if (judge_aside) {
+    parallelFor(
+        2, [&](size_t item) { item == 0 ? search() : judgeFound(); }, 2);
+  } else {
+    search();
   }
-  join_judges();
   std::vector<Candidate> candidates;
   for (const auto& judged : found) {
     if (judged->error) std::rethrow_exception(judged->error);

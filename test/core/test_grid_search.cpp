@@ -233,6 +233,25 @@ std::vector<float> nearestSquaredByPairs(const Cloud& cloud, size_t i, int k) {
   return squared;
 }
 
+// forEachNearestK on 2.5 cm cells (as the outlier removal), in no order, on `threads` threads:
+// every point's k smallest squared distances those of nearestSquaredByPairs, each point once.
+void expectNearestKDistancesByPairs(const CloudPtr& cloud, int k, unsigned threads) {
+  GridSearch<Point> search(0.025f);
+  search.setInputCloud(cloud);
+  std::vector<int> visits(cloud->size(), 0);
+  search.forEachNearestK(
+      k,
+      [&](int i, const std::vector<float>& squared) {
+        ++visits[i];
+        std::vector<float> found = squared;
+        std::sort(found.begin(), found.end());
+        EXPECT_EQ(found, nearestSquaredByPairs(*cloud, i, k))
+            << "point " << i << " of " << cloud->size() << ", " << threads << " threads";
+      },
+      false, threads);
+  for (size_t i = 0; i < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+}
+
 }  // namespace
 
 TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
@@ -277,19 +296,33 @@ TEST(GridSearch, NearestKDistancesAmongEqualDistancesAreThoseOfAPairwiseSearch) 
   }
   constexpr int k = 50;
   for (int copy = 0; copy < k + 4; ++copy) cloud->push_back(Point(0.5f, 0.5f, 1.0f));
-  GridSearch<Point> search(0.025f);
-  search.setInputCloud(cloud);
-  std::vector<int> visits(cloud->size(), 0);
-  search.forEachNearestK(
-      k,
-      [&](int i, const std::vector<float>& squared) {
-        ++visits[i];
-        std::vector<float> found = squared;
-        std::sort(found.begin(), found.end());
-        EXPECT_EQ(found, nearestSquaredByPairs(*cloud, i, k)) << "point " << i;
-      },
-      false);
-  for (size_t i = 0; i < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
+  expectNearestKDistancesByPairs(cloud, k, 1);
+}
+
+TEST(GridSearch, NearestKDistancesOfIsolatedPointsAreThoseOfAPairwiseSearch) {
+  // Points whose 3 x 3 x 3 block of cells holds fewer than k: a pair sharing a cell 40 cm
+  // (16 cells) from a 5 mm lattice, a lone point 1 m away along a diagonal, three points a cell
+  // apart beside the lattice's corner; their k nearest come from rings far beyond the block.
+  // Then a cloud of k + 1 points spread over 60 cm: each point's k nearest are all but one.
+  auto cloud = std::make_shared<Cloud>();
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) cloud->push_back(Point(0.005f * i, 0.005f * j, 1.0f));
+  }
+  for (const Point& p :
+       {Point(0.5f, 0.05f, 1.0f), Point(0.503f, 0.052f, 1.001f), Point(-0.6f, -0.6f, 1.6f),
+        Point(-0.03f, -0.03f, 1.0f), Point(-0.055f, -0.03f, 1.0f), Point(-0.08f, -0.03f, 1.02f)}) {
+    cloud->push_back(p);
+  }
+  constexpr int k = 50;
+  auto sparse = std::make_shared<Cloud>();
+  for (int i = 0; i <= k; ++i) {
+    sparse->push_back(Point(0.012f * static_cast<float>(i),
+                            0.3f - 0.005f * static_cast<float>(i % 7),
+                            1.0f + 0.001f * static_cast<float>(i % 3)));
+  }
+  for (const CloudPtr& points : {cloud, sparse}) {
+    for (const unsigned threads : {1u, 2u}) expectNearestKDistancesByPairs(points, k, threads);
+  }
 }
 
 TEST(GridSearch, ConnectedComponentsLinkAcrossTheBandBorderOverSeveralCells) {

@@ -106,6 +106,30 @@ class GridSearch : public pcl::search::Search<PointT> {
   // `threads` threads: one part for one thread, else 4 per thread, so that a thread slowed by
   // other work takes fewer.
   void forEachPart(unsigned threads, const std::function<void(size_t, size_t)>& visitPart) const;
+  // The occupied cells, each with its range of points_, in points_' order (one array per field:
+  // orderByRing's loop over them is vectorised).
+  struct OccupiedCells {
+    std::vector<int> x, y, z;
+    std::vector<uint32_t> begin, end;
+  };
+  OccupiedCells occupiedCells() const;
+  // The occupied cells ordered by ring around the cell (x, y, z) (their Chebyshev distance from
+  // it in cells): those of ring r are order[ring_start[r] .. ring_start[r + 1]).
+  struct CellsByRing {
+    int x = 0, y = 0, z = 0;
+    bool valid = false;
+    std::vector<int> ring;
+    std::vector<uint32_t> order, ring_start;
+  };
+  void orderByRing(const OccupiedCells& cells, int x, int y, int z, CellsByRing& by_ring) const;
+  // The squared distances from q (a point of points_) to its `wanted` nearest points (all of
+  // them when fewer), in no order, into `nearest`: nearestKSearch's rings, taken from the
+  // occupied cells ordered by ring around q's cell (by_ring, reordered when q is in another
+  // cell) instead of one hash lookup per cell of each ring. An isolated point's k-th neighbour
+  // lies up to 24 cells away (the speed scenes): its rings run through thousands of empty cells.
+  void nearestByRings(const Entry& q, size_t wanted, const OccupiedCells& cells,
+                      CellsByRing& by_ring, std::vector<float>& found,
+                      std::vector<float>& nearest) const;
   // Appends to `squared` the squared distances from q to the points outside the 3 x 3 x 3 block
   // of cells around q's cell that lie in cells within `reach` of q along each axis.
   void addBeyondTheBlock(const Entry& q, float reach, std::vector<float>& squared) const;
