@@ -11,6 +11,10 @@
 #include <atomic>
 #include <cstring>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 namespace tabletop_shapes {
 namespace bridge {
 
@@ -228,24 +232,35 @@ void readInputCloud(const sensor_msgs::PointCloud2& msg, const uint8_t* points,
   // idle while a frame is read.
   constexpr size_t kPointsPerBand = 32768;
   const size_t bands = (size + kPointsPerBand - 1) / kPointsPerBand;
+  const size_t point_step = msg.point_step;
+  // x y z first and at least 16 bytes a point (every camera driver's and PCL's layouts): a
+  // point is one 16-byte load and store, its fourth lane set to 1.
+  const bool xyz_first = offset_x == 0 && offset_y == 4 && offset_z == 8 && point_step >= 16;
   parallelFor(
       bands,
       [&](size_t band) {
-        const size_t begin = band * kPointsPerBand, end = std::min(size, begin + kPointsPerBand);
-        size_t row = begin / msg.width, column = begin % msg.width;
-        const uint8_t* point =
-            points + row * msg.row_step + column * static_cast<size_t>(msg.point_step);
-        pcl::PointXYZ* out = cloud.points.data() + begin;
-        for (size_t i = begin; i < end; ++i, ++out) {
-          std::memcpy(&out->x, point + offset_x, 4);
-          std::memcpy(&out->y, point + offset_y, 4);
-          std::memcpy(&out->z, point + offset_z, 4);
-          out->data[3] = 1.0f;  // as a constructed point: PCL's 4-vector maps read it
-          if (++column < msg.width) {
-            point += msg.point_step;
-          } else {  // rows may end in padding (row_step > width x point_step)
-            column = 0;
-            point = points + ++row * msg.row_step;
+        const size_t end = std::min(size, (band + 1) * kPointsPerBand);
+        // Row by row: rows may end in padding (row_step > width x point_step).
+        for (size_t i = band * kPointsPerBand; i < end;) {
+          const size_t row = i / msg.width, row_end = std::min(end, (row + 1) * msg.width);
+          const uint8_t* point = points + row * msg.row_step + (i - row * msg.width) * point_step;
+          pcl::PointXYZ* out = cloud.points.data() + i;
+#ifdef __SSE2__
+          if (xyz_first) {
+            const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+            const __m128 one = _mm_setr_ps(0.0f, 0.0f, 0.0f, 1.0f);
+            for (; i < row_end; ++i, ++out, point += point_step) {
+              const __m128 loaded = _mm_loadu_ps(reinterpret_cast<const float*>(point));
+              _mm_storeu_ps(out->data, _mm_or_ps(_mm_and_ps(loaded, xyz), one));
+            }
+            continue;
+          }
+#endif
+          for (; i < row_end; ++i, ++out, point += point_step) {
+            std::memcpy(&out->x, point + offset_x, 4);
+            std::memcpy(&out->y, point + offset_y, 4);
+            std::memcpy(&out->z, point + offset_z, 4);
+            out->data[3] = 1.0f;  // as a constructed point: PCL's 4-vector maps read it
           }
         }
       },

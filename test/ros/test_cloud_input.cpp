@@ -90,16 +90,19 @@ TEST(CloudInput, ColourCloudIsReadAsXyzIntoAReusedCloud) {
 
 // A camera-sized cloud is read in bands of points on two threads: bands that start inside a
 // row, rows that end in padding (row_step beyond width x point_step) and x y z at other
-// offsets than 0 4 8 all land on the right points.
-TEST(CloudInput, LargeCloudIsReadInBandsOnTwoThreads) {
-  constexpr uint32_t kWidth = 641, kHeight = 77, kPointStep = 20, kRowPadding = 12;
+// offsets than 0 4 8 all land on the right points; so do x y z at 0 4 8 (each point one 16-byte
+// load) and packed 12-byte points.
+size_t wronglyReadPoints(uint32_t offset_x, uint32_t offset_y, uint32_t offset_z,
+                         uint32_t point_step) {
+  constexpr uint32_t kWidth = 641, kHeight = 77, kRowPadding = 12;
   sensor_msgs::PointCloud2 msg;
   msg.width = kWidth;
   msg.height = kHeight;
-  msg.point_step = kPointStep;
-  msg.row_step = kWidth * kPointStep + kRowPadding;
+  msg.point_step = point_step;
+  msg.row_step = kWidth * point_step + kRowPadding;
+  const uint32_t offsets[3] = {offset_x, offset_y, offset_z};
   for (const auto& [name, offset] :
-       {std::pair<const char*, uint32_t>{"z", 4}, {"x", 8}, {"y", 12}}) {
+       {std::pair<const char*, uint32_t>{"z", offset_z}, {"x", offset_x}, {"y", offset_y}}) {
     sensor_msgs::PointField field;
     field.name = name;
     field.offset = offset;
@@ -113,19 +116,20 @@ TEST(CloudInput, LargeCloudIsReadInBandsOnTwoThreads) {
   };
   for (uint32_t row = 0; row < kHeight; ++row) {
     for (uint32_t column = 0; column < kWidth; ++column) {
-      uint8_t* point = msg.data.data() + row * msg.row_step + column * kPointStep;
+      uint8_t* point = msg.data.data() + row * msg.row_step + column * point_step;
       for (int axis = 0; axis < 3; ++axis) {
         const float value = valueAt(row, column, axis);
-        std::memcpy(point + (axis == 0 ? 8 : axis == 1 ? 12 : 4), &value, 4);
+        std::memcpy(point + offsets[axis], &value, 4);
       }
     }
   }
-  ASSERT_EQ(invalidCloudReason(msg, kCap), "");
+  EXPECT_EQ(invalidCloudReason(msg, kCap), "");
   setWorkerThreads(2);
   bridge::ReceivedCloud cloud;
   bridge::readInputCloud(msg, cloud);
   setWorkerThreads(0);
-  ASSERT_EQ(cloud.size(), static_cast<size_t>(kWidth) * kHeight);
+  EXPECT_EQ(cloud.size(), static_cast<size_t>(kWidth) * kHeight);
+  if (cloud.size() != static_cast<size_t>(kWidth) * kHeight) return cloud.size();
   size_t wrong = 0;
   for (uint32_t row = 0; row < kHeight; ++row) {
     for (uint32_t column = 0; column < kWidth; ++column) {
@@ -134,7 +138,13 @@ TEST(CloudInput, LargeCloudIsReadInBandsOnTwoThreads) {
                p.z != valueAt(row, column, 2) || p.data[3] != 1.0f;
     }
   }
-  EXPECT_EQ(wrong, 0u);
+  return wrong;
+}
+
+TEST(CloudInput, LargeCloudIsReadInBandsOnTwoThreads) {
+  EXPECT_EQ(wronglyReadPoints(8, 12, 4, 20), 0u);
+  EXPECT_EQ(wronglyReadPoints(0, 4, 8, 20), 0u);
+  EXPECT_EQ(wronglyReadPoints(0, 4, 8, 12), 0u);
 }
 
 // The cloud of the last frame is read into again once nobody holds it; one still held, or one
