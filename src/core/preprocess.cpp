@@ -48,6 +48,11 @@ inline bool finitePoint(float x, float y, float z) {
 constexpr size_t kSides = 2;
 constexpr uint64_t kSideBit = uint64_t{1} << (3 * voxel_key::kAxisBits - 1);
 
+// A new key's lookup starts the load of the hash slot of the key this many pixels on: most new
+// voxels' home slots are then in the cache when their lookup comes (the table is larger than L2;
+// preprocess alone, speed4, one thread: 4, 6, 8 and 12 pixels about as fast, 2 and 16+ slower).
+constexpr int kPrefetchAhead = 8;
+
 inline size_t sideOf(uint64_t key) { return key >> (3 * voxel_key::kAxisBits - 1) & 1; }
 
 // The first of keys[from, end) that is neither kEmpty nor on the side whose key bit is `side`
@@ -107,6 +112,16 @@ inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) 
     slot = (slot + 1) & mask;
   }
   return insert(key, pixel, slot);
+}
+
+inline void Preprocessor::VoxelTable::prefetch(uint64_t key) const {
+  const Slot& slot = slots_[voxel_key::hash(key) & (slots_.size() - 1)];
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+  // GCC 12 at -O1 and above drops this loop's __builtin_prefetch.
+  asm volatile("prefetcht0 %0" : : "m"(slot));
+#else
+  __builtin_prefetch(&slot);
+#endif
 }
 
 uint32_t Preprocessor::VoxelTable::insert(uint64_t key, uint32_t pixel, size_t slot) {
@@ -373,6 +388,9 @@ void Preprocessor::sumOwnedVoxels(const pcl::PointCloud<PointT>& in, int width, 
         if (!owned) {  // on to the pixel before the next key of another side
           u = nextOtherSide(keys, u + 1, width, last_side) - 1;
           continue;
+        }
+        if (u + kPrefetchAhead < width && keys[u + kPrefetchAhead] != voxel_key::kEmpty) {
+          table.prefetch(keys[u + kPrefetchAhead]);
         }
         // The pixel above with the same key is this owner's too: its voxel was kept.
         last_voxel = v > 0 && keys_[row - width + u] == key

@@ -38,6 +38,9 @@ class Preprocessor {
     void clear();  // keeps the last frame's size, so that a frame like it does not grow
     // Inserts a voxel with an empty sum, first met at `pixel`, when new.
     uint32_t voxelOf(uint64_t key, uint32_t pixel);
+    // Starts loading the slot where key's probe begins: a lookup a few pixels on then finds it
+    // in the cache (the table is larger than L2).
+    void prefetch(uint64_t key) const;
     size_t bytes() const;
     void release();              // gives back a table far larger than its voxels need
     std::vector<VoxelSum> sums;  // in order of first appearance: deterministic output
