@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -1172,18 +1173,30 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
   // The neighbour lists do not depend on the convex parts: with a core free (one pile on the
-  // table), they are found on it while PCL's supervoxels, serial, take the other.
+  // table), they are found on it while PCL's supervoxels, serial, take the other. Without one
+  // (several clusters on the cores), only when LCCP found parts: the merges below take
+  // neighbours of another part, and one part is the cluster whole.
   ConvexParts convex_parts;
   std::optional<NearestOfEach> nearest;
-  parallelFor(
-      2,
-      [&](size_t task) {
-        if (task == 0)
-          convex_parts = convexParts(cluster, params);
-        else
-          nearest.emplace(cluster);
-      },
-      freeWorkerThreads());
+  const unsigned threads = freeWorkerThreads();
+  if (threads > 1) {
+    parallelFor(
+        2,
+        [&](size_t task) {
+          if (task == 0)
+            convex_parts = convexParts(cluster, params);
+          else
+            nearest.emplace(cluster);
+        },
+        threads);
+  } else {
+    convex_parts = convexParts(cluster, params);
+    const std::vector<uint32_t>& labels = convex_parts.labels;
+    if (std::adjacent_find(labels.begin(), labels.end(), std::not_equal_to<uint32_t>()) ==
+        labels.end())
+      return {cluster};
+    nearest.emplace(cluster);
+  }
   mergeSmallParts(*nearest, min_points, convex_parts);
   mergeUnseparatedParts(*cluster, *nearest, table,
                         sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
