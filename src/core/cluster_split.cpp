@@ -16,6 +16,8 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -1171,18 +1173,30 @@ std::vector<CloudPtr> splitStack(const CloudPtr& cluster, const Plane& table,
       static_cast<int>(cluster->size()) >= 2 * min_points && mayHoldAStack(*cluster, table, params);
   if (!may_hold_a_stack) return {cluster};
   // The neighbour lists do not depend on the convex parts: with a core free (one pile on the
-  // table), they are found on it while PCL's supervoxels, serial, take the other.
+  // table), they are found on it while PCL's supervoxels, serial, take the other. Without one
+  // (several clusters on the cores), only when LCCP found parts: the merges below take
+  // neighbours of another part, and one part is the cluster whole.
   ConvexParts convex_parts;
   std::optional<NearestOfEach> nearest;
-  parallelFor(
-      2,
-      [&](size_t task) {
-        if (task == 0)
-          convex_parts = convexParts(cluster, params);
-        else
-          nearest.emplace(cluster);
-      },
-      freeWorkerThreads());
+  const unsigned threads = freeWorkerThreads();
+  if (threads > 1) {
+    parallelFor(
+        2,
+        [&](size_t task) {
+          if (task == 0)
+            convex_parts = convexParts(cluster, params);
+          else
+            nearest.emplace(cluster);
+        },
+        threads);
+  } else {
+    convex_parts = convexParts(cluster, params);
+    const std::vector<uint32_t>& labels = convex_parts.labels;
+    if (std::adjacent_find(labels.begin(), labels.end(), std::not_equal_to<uint32_t>()) ==
+        labels.end())
+      return {cluster};
+    nearest.emplace(cluster);
+  }
   mergeSmallParts(*nearest, min_points, convex_parts);
   mergeUnseparatedParts(*cluster, *nearest, table,
                         sidewaysSmear(centroidOf(*cluster).norm(), params), convex_parts);
@@ -1270,13 +1284,20 @@ std::vector<CloudPtr> joinTopsCutByAnObjectOnThem(std::vector<CloudPtr> objects,
     };
     std::unordered_map<uint64_t, GapCell> gap;
     int over = 0;
+    // insideDistance(q) >= -smear and >= 0 as insideBy, which stops at the first edge that q
+    // lies farther out than the margin: no float lies between a margin and the next one below.
+    // The tests in the order that takes the fewest edges: most points in the joint box are the
+    // objects' own and inside the joint outline, each found close to its own outline.
+    const float lowest = std::numeric_limits<float>::lowest();
+    const float smear_margin = std::nextafter(-smear, lowest),
+                zero_margin = std::nextafter(0.0f, lowest);
     auto visit = [&](const Cloud& cloud, int sign) {
       for (const auto& p : cloud) {
         const float h = table.signedDistance(p.getVector3fMap());
         const Eigen::Vector2f q = onTable(p);
         if (std::abs(h - top) <= kTopStep || !joint_box.contains(q) ||
-            joint_edges.insideDistance(q) < 0 || edges_a.insideDistance(q) >= -smear ||
-            edges_b.insideDistance(q) >= -smear)
+            edges_a.insideBy(q, smear_margin) || edges_b.insideBy(q, smear_margin) ||
+            !joint_edges.insideBy(q, zero_margin))
           continue;
         const Eigen::Vector2f c = q / kFootprintCell;
         GapCell& cell =
