@@ -213,6 +213,15 @@ struct Neighbourhood {
   }
 };
 
+// The calling thread's Neighbourhood (MLS runs on several threads), reused from point to point.
+// Out of line: where the thread_local was named in the caller, GCC took its address again
+// (__tls_get_addr, about 11 instructions) after each call and loop of the inlined gather, five
+// times per point.
+[[gnu::noinline]] Neighbourhood& threadNeighbourhood() {
+  thread_local Neighbourhood near;
+  return near;
+}
+
 // Neighbours k .. k + kLanesOf<Real> - 1 of `coordinates` less the query's `origin` (exact in
 // floats), in Real.
 template <typename Real>
@@ -536,8 +545,7 @@ void smoothWithNormals(const CloudConstPtr& cluster, const NormalParams& params,
   std::vector<char> fitted(finite->size(), 0);
   auto smooth = [&](int i, const pcl::Indices& neighbours) {
     if (neighbours.size() < 3) return;
-    thread_local Neighbourhood near;  // one per thread (MLS runs on several), reused
-    Neighbourhood& neighbourhood = near;
+    Neighbourhood& neighbourhood = threadNeighbourhood();
     neighbourhood.gather(*finite, neighbours, (*finite)[i]);
     LocalSurface surface;
     if (!fitLocalSurface(neighbourhood, params.search_radius, order, surface)) return;

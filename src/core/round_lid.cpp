@@ -1,13 +1,19 @@
 #include "tabletop_shapes/core/round_lid.h"
 
 #include "tabletop_shapes/core/cylinder_fit.h"
+#include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/float4.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace tabletop_shapes {
 namespace {
@@ -49,19 +55,29 @@ constexpr float kMinFarShareOnCircle = 0.55f;
 constexpr float kMaxFarOverhang = 0.015f;
 constexpr float kFarCornerGap = 0.005f;
 
-// The circle through three points; ok false when they are (nearly) collinear.
-Circle circleThrough(const Eigen::Vector2f& a, const Eigen::Vector2f& b, const Eigen::Vector2f& c) {
-  Circle circle;
-  const Eigen::Vector2f ab = b - a, ac = c - a;
-  const float det = 2.0f * (ab.x() * ac.y() - ab.y() * ac.x());
-  if (std::abs(det) < 1e-9f) return circle;
-  const float ab2 = ab.squaredNorm(), ac2 = ac.squaredNorm();
-  const Eigen::Vector2f offset((ac.y() * ab2 - ab.y() * ac2) / det,
-                               (ab.x() * ac2 - ac.x() * ab2) / det);
-  circle.center = a + offset;
-  circle.radius = offset.norm();
-  circle.ok = std::isfinite(circle.radius);
-  return circle;
+// The circles through a, b and each of four third points (lanes cx, cy), each lane with the
+// float operations of the circle through three points; `ok` (all bits set) where the points are
+// not (nearly) collinear and the radius is finite.
+struct FourCircles {
+  Float4 center_x, center_y, radius;
+  Int4 ok;
+};
+FourCircles circlesThrough(const Eigen::Vector2f& a, const Eigen::Vector2f& b, Float4 cx,
+                           Float4 cy) {
+  const float ab_x = b.x() - a.x(), ab_y = b.y() - a.y();
+  const Float4 ac_x = cx - a.x(), ac_y = cy - a.y();
+  const Float4 det = 2.0f * (ab_x * ac_y - ab_y * ac_x);
+  const float ab2 = ab_x * ab_x + ab_y * ab_y;
+  const Float4 ac2 = ac_x * ac_x + ac_y * ac_y;
+  const Float4 offset_x = (ac_y * ab2 - ab_y * ac2) / det;
+  const Float4 offset_y = (ab_x * ac2 - ac_x * ab2) / det;
+  FourCircles circles;
+  circles.center_x = a.x() + offset_x;
+  circles.center_y = a.y() + offset_y;
+  circles.radius = squareRoot(offset_x * offset_x + offset_y * offset_y);
+  const Float4 infinity = broadcast(std::numeric_limits<float>::infinity());
+  circles.ok = ~(magnitude(det) < 1e-9f) & (magnitude(circles.radius) < infinity);
+  return circles;
 }
 
 bool onCircle(const Eigen::Vector2f& p, const Circle& circle) {
@@ -73,11 +89,12 @@ int pointsOnCircle(const std::vector<Eigen::Vector2f>& points, const Circle& cir
       points.begin(), points.end(), [&](const Eigen::Vector2f& p) { return onCircle(p, circle); }));
 }
 
-// Points in blocks of four, one array per coordinate (the padding NaN: on no circle). The circle
-// search tests up to 7140 circles (through 3 of up to 36 outline points) against the same points.
+// Points in blocks of four, one array per coordinate (the padding NaN: on no circle), an even
+// number of blocks (for pointsOnCircleAboveInEightLanes). The circle search tests up to 7140
+// circles (through 3 of up to 36 outline points) against the same points.
 struct PointBlocks {
   explicit PointBlocks(const std::vector<Eigen::Vector2f>& points)
-      : x((points.size() + 3) / 4, broadcast(std::numeric_limits<float>::quiet_NaN())),
+      : x((points.size() + 7) / 8 * 2, broadcast(std::numeric_limits<float>::quiet_NaN())),
         y(x),
         count(static_cast<int>(points.size())) {
     for (size_t i = 0; i < points.size(); ++i) {
@@ -104,6 +121,37 @@ int pointsOnCircleAbove(const PointBlocks& points, const Circle& circle, int lea
   return on;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+// pointsOnCircleAbove eight points at a time, the same float operations per lane: the same count
+// where it exceeds `least` (it stops only with at most `least` on the circle: on + left <= least).
+__attribute__((target("avx2,popcnt"))) int pointsOnCircleAboveInEightLanes(
+    const PointBlocks& points, const Circle& circle, int least) {
+  using Float8 = float __attribute__((vector_size(32)));
+  using Int8 = int __attribute__((vector_size(32)));
+  const Float8 cx = Float8{} + circle.center.x(), cy = Float8{} + circle.center.y();
+  const Float8 radius = Float8{} + circle.radius, band = Float8{} + kOutlineBand;
+  const float* xs = reinterpret_cast<const float*>(points.x.data());
+  const float* ys = reinterpret_cast<const float*>(points.y.data());
+  const size_t floats = 4 * points.x.size();
+  int on = 0, left = points.count;
+  for (size_t k = 0; k < floats && on + left > least; k += 8, left -= 8) {
+    Float8 x, y;
+    std::memcpy(&x, xs + k, sizeof x);
+    std::memcpy(&y, ys + k, sizeof y);
+    const Float8 dx = x - cx, dy = y - cy;
+    const Float8 off = (Float8)_mm256_sqrt_ps((__m256)(dx * dx + dy * dy)) - radius;
+    const Int8 within = (Float8)((Int8)off & 0x7fffffff) <= band;
+    on += __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps((__m256)within)));
+  }
+  return on;
+}
+#else
+// Without AVX2 (cpuHasAvx2() false): never called.
+int pointsOnCircleAboveInEightLanes(const PointBlocks& points, const Circle& circle, int least) {
+  return pointsOnCircleAbove(points, circle, least);
+}
+#endif
+
 // Outline points farther than the band beyond `circle`.
 int pointsBeyondCircle(const std::vector<Eigen::Vector2f>& points, const Circle& circle) {
   return static_cast<int>(
@@ -122,15 +170,37 @@ Circle bestCircle(const std::vector<Eigen::Vector2f>& points, float min_radius, 
   Circle best;
   int best_on = 0;
   const PointBlocks blocks(points);
-  for (size_t i = 0; i < points.size(); ++i) {
-    for (size_t j = i + 1; j < points.size(); ++j) {
-      for (size_t k = j + 1; k < points.size(); ++k) {
-        const Circle circle = circleThrough(points[i], points[j], points[k]);
-        if (!circle.ok || circle.radius < min_radius || circle.radius > max_radius) continue;
-        const int on = pointsOnCircleAbove(blocks, circle, best_on);
-        if (on > best_on && (!containing || pointsBeyondCircle(points, circle) <= 1)) {
-          best = circle;
-          best_on = on;
+  const bool eight_lanes = cpuHasAvx2();
+  // The third points four at a time, from arrays with three NaNs past the points.
+  const size_t n = points.size();
+  std::vector<float> xs(n + 3, std::numeric_limits<float>::quiet_NaN()), ys(xs);
+  for (size_t k = 0; k < n; ++k) xs[k] = points[k].x(), ys[k] = points[k].y();
+  auto fourFrom = [](const std::vector<float>& values, size_t k) {
+    Float4 lanes;
+    std::memcpy(&lanes, values.data() + k, sizeof lanes);
+    return lanes;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) {
+      for (size_t k0 = j + 1; k0 < n; k0 += 4) {
+        const FourCircles circles =
+            circlesThrough(points[i], points[j], fourFrom(xs, k0), fourFrom(ys, k0));
+        const Int4 in_range =
+            circles.ok & (circles.radius >= min_radius) & (circles.radius <= max_radius);
+        // The lanes in k's order, the last block's lanes past the points left out.
+        const unsigned lanes = lanesOf(in_range) & ((1u << std::min<size_t>(4, n - k0)) - 1);
+        for (unsigned rest = lanes; rest != 0; rest &= rest - 1) {
+          const int lane = __builtin_ctz(rest);
+          Circle circle;
+          circle.center = Eigen::Vector2f(circles.center_x[lane], circles.center_y[lane]);
+          circle.radius = circles.radius[lane];
+          circle.ok = true;
+          const int on = eight_lanes ? pointsOnCircleAboveInEightLanes(blocks, circle, best_on)
+                                     : pointsOnCircleAbove(blocks, circle, best_on);
+          if (on > best_on && (!containing || pointsBeyondCircle(points, circle) <= 1)) {
+            best = circle;
+            best_on = on;
+          }
         }
       }
     }
