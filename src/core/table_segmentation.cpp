@@ -13,7 +13,6 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdio>
 #include <cmath>
 #include <condition_variable>
@@ -1524,16 +1523,17 @@ void removeStatisticalOutliers(const CloudConstPtr& in, int k, float alpha, Clou
   GridSearch<Point> search(kOutlierSearchCell);
   search.setInputCloud(in);
   std::vector<float> distances(in->size(), 0.0f);  // points without neighbours: 0, as PCL
-  std::atomic<int> valid_count{0};
-  // On all cores: each point's distance depends on its neighbours alone.
+  // On all cores: each point's distance depends on its neighbours alone. Every searched point
+  // is visited: they are the valid ones (counted once here, not by an increment per point
+  // shared by the threads).
   search.forEachNearestK(
       k + 1,
       [&](int i, const std::vector<float>& squared) {
         thread_local std::vector<float> sorted;
         distances[i] = static_cast<float>(sumOfDistancesButTheNearest(squared, sorted) / k);
-        ++valid_count;
       },
       false, workerThreads());
+  const int valid_count = static_cast<int>(search.searchedPoints());
   double sum = 0.0, squared_sum = 0.0;
   for (const float distance : distances) {
     sum += distance;
