@@ -77,7 +77,11 @@ DensestSlab densestSlab(const std::vector<float>& values, float width) {
   }
   // Bins in the values' order: a <= b gives binOf(a) <= binOf(b) (rounding is monotone), so a
   // value in a lower bin than x is < x and one in a higher bin > x, whatever the rounding.
-  auto binOf = [&](float v) { return static_cast<size_t>((v - lo) * inv_bin); };
+  // Through int64_t: one conversion instruction, where float to size_t is a compare and two
+  // paths (the same bin: (v - lo) * inv_bin lies in [0, n + 4096)).
+  auto binOf = [&](float v) {
+    return static_cast<size_t>(static_cast<int64_t>((v - lo) * inv_bin));
+  };
   const size_t bins = binOf(hi) + 1;
   std::vector<uint32_t> start(bins + 1, 0);  // start[b]: the values in the bins below b
   std::vector<float> bin_min(bins, hi), bin_max(bins, lo);
