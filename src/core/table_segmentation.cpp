@@ -1162,16 +1162,22 @@ Candidate onEveryPoint(const Cloud& frame, const Candidate& found, const TablePa
   Candidate table;
   table.plane = found.plane;
   table.found_before = found.found_before;
+  // Most of the frame is the table (~76 k of its points in each of the three passes on the
+  // 4-object speed scene): the indices are written into room for every point, not pushed back
+  // one by one (a capacity test and the vector's end reloaded per point).
   auto collect = [&](const Plane& plane, float half_width, std::vector<int>& within) {
-    within.clear();
+    within.resize(frame.size());
+    int* const out = within.data();
+    size_t kept = 0;
     forEachPointInBand(frame, plane, -half_width, half_width, true, [&](int i) {
       const Eigen::Vector3f p = frame[i].getVector3fMap();
       for (const Plane& before : found.found_before) {
         if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return true;
       }
-      within.push_back(i);
+      out[kept++] = i;
       return true;
     });
+    within.resize(kept);
   };
   collect(table.plane, params.distance_threshold, table.inliers);
   refitOnDensestSlab(frame, constraint, params.distance_threshold, collect, table.plane,
