@@ -410,10 +410,30 @@ void buildHull(const Cloud& cloud, Candidate& candidate,
   std::vector<Eigen::Vector2f> projected;
   auto projectInliers = [&](bool drop_surely_inside) {
     projected.clear();
-    for (int i : candidate.inliers) {
-      const Eigen::Vector3f p = cloud[i].getVector3fMap();
-      const Eigen::Vector2f q(candidate.u.dot(p), candidate.v.dot(p));
+    auto keep = [&](const Eigen::Vector2f& q) {
       if (!drop_surely_inside || !octagon.surelyInside(q)) projected.push_back(q);
+    };
+    const std::vector<int>& inliers = candidate.inliers;
+    size_t k = 0;
+#ifdef __SSE__
+    // Four inliers at a time (a table's ~76 k): each lane makes the float operations of Eigen's
+    // dot in its order (u.x x + (u.y y + u.z z)), as forEachPointInBand's lanes, so the same
+    // projections.
+    const Eigen::Vector3f &u = candidate.u, &v = candidate.v;
+    const Float4 ux = broadcast(u.x()), uy = broadcast(u.y()), uz = broadcast(u.z());
+    const Float4 vx = broadcast(v.x()), vy = broadcast(v.y()), vz = broadcast(v.z());
+    for (; k + 4 <= inliers.size(); k += 4) {
+      __m128 a = _mm_loadu_ps(&cloud[inliers[k]].x), b = _mm_loadu_ps(&cloud[inliers[k + 1]].x),
+             c = _mm_loadu_ps(&cloud[inliers[k + 2]].x), w = _mm_loadu_ps(&cloud[inliers[k + 3]].x);
+      _MM_TRANSPOSE4_PS(a, b, c, w);
+      const Float4 x = (Float4)a, y = (Float4)b, z = (Float4)c;
+      const Float4 along_u = ux * x + (uy * y + uz * z), along_v = vx * x + (vy * y + vz * z);
+      for (int lane = 0; lane < 4; ++lane) keep(Eigen::Vector2f(along_u[lane], along_v[lane]));
+    }
+#endif
+    for (; k < inliers.size(); ++k) {
+      const Eigen::Vector3f p = cloud[inliers[k]].getVector3fMap();
+      keep(Eigen::Vector2f(candidate.u.dot(p), candidate.v.dot(p)));
     }
   };
   projectInliers(true);
