@@ -282,6 +282,8 @@ TEST(GridSearch, NearestKDistancesOfEveryPointAreThoseOfAPairwiseSearch) {
         ascending, threads);
     for (size_t i = 0; i + 1 < cloud->size(); ++i) EXPECT_EQ(visits[i], 1) << i;
     EXPECT_EQ(visits.back(), 0);
+    // The points visited are the searched ones (the outlier removal's valid count).
+    EXPECT_EQ(search.searchedPoints(), cloud->size() - 1);
   }
 }
 

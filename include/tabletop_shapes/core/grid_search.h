@@ -48,6 +48,8 @@ class GridSearch : public pcl::search::Search<PointT> {
   // many threads, which call visit concurrently (for different points), with the same lists.
   void forEachNearestK(int k, const std::function<void(int, const std::vector<float>&)>& visit,
                        bool ascending = true, unsigned threads = 1) const;
+  // The points searched: the input's finite ones (forEachNearestK visits each of them once).
+  size_t searchedPoints() const { return points_.size(); }
   // The same with the neighbours' input indices: visit(index, the k nearest, nearest first,
   // equal distances by index), the lists one nearestKSearch per point gives. threads > 1: as
   // forEachNearestK.
