@@ -252,8 +252,8 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
                  cot_sqs = _mm_set1_ps(cot_sq), max_range_sqs = _mm_set1_ps(max_range_sq),
                  inv_leafs = _mm_set1_ps(inv_leaf), limits = _mm_set1_ps(limit),
                  sign = _mm_set1_ps(-0.0f), huge = _mm_set1_ps(std::numeric_limits<float>::max());
-    const bool with_view = view != nullptr, in_range_only = limit_range,
-               flying_test = drop_flying, with_grid = grid;
+    const bool with_view = view != nullptr, in_range_only = limit_range, flying_test = drop_flying,
+               with_grid = grid;
     const int row_width = width;
     __m128 left_x = zero, left_y = zero, left_z = zero;  // of the previous four pixels
     // The extremes in locals (registers), not in the accumulators the lambda captures.
