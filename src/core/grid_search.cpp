@@ -62,11 +62,6 @@ constexpr auto kLeftPack = [] {
   return table;
 }();
 
-// The values of `values` <= bound, in their order, into `kept` (room for values.size());
-// returns how many. Eight at a time where the CPU has AVX2 (compared, then moved
-// together by kLeftPack's permutation), else one at a time
-// (each written, the end moving past it when it is kept): a fifth of the outlier removal's
-// instructions went to this loop over each point's ~300 block candidates.
 // The lanes of `values` set in the 8-bit `mask`, in order, stored at `to` (8 lanes written);
 // how many.
 __attribute__((target("avx2"))) inline size_t packLanes(__m256 values, int mask, float* to) {
@@ -76,6 +71,11 @@ __attribute__((target("avx2"))) inline size_t packLanes(__m256 values, int mask,
   return static_cast<size_t>(__builtin_popcount(mask));
 }
 
+// The values of `values` <= bound, in their order, into `kept` (room for values.size());
+// returns how many. Eight at a time where the CPU has AVX2 (compared, then moved
+// together by kLeftPack's permutation), else one at a time
+// (each written, the end moving past it when it is kept): a fifth of the outlier removal's
+// instructions went to this loop over each point's ~300 block candidates.
 __attribute__((target("avx2"))) size_t keepAtMostAvx2(const std::vector<float>& values, float bound,
                                                       float* kept) {
   const size_t n = values.size();
