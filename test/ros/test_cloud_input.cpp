@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstring>
 #include <limits>
+#include <string>
 
 namespace tabletop_shapes {
 namespace {
@@ -123,7 +124,9 @@ size_t wronglyReadPoints(uint32_t offset_x, uint32_t offset_y, uint32_t offset_z
       }
     }
   }
-  EXPECT_EQ(invalidCloudReason(msg, kCap), "");
+  const std::string invalid = invalidCloudReason(msg, kCap);
+  EXPECT_EQ(invalid, "");
+  if (!invalid.empty()) return msg.width * msg.height;  // not read: the reader trusts the check
   setWorkerThreads(2);
   bridge::ReceivedCloud cloud;
   bridge::readInputCloud(msg, cloud);
