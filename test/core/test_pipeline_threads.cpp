@@ -8,6 +8,8 @@
 #include <pcl/io/pcd_io.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -15,6 +17,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <sched.h>
 
 namespace tabletop_shapes {
 namespace {
@@ -139,6 +143,41 @@ TEST(ParallelFor, FreeWorkerThreadsOneWithinItemsOfSeveralThreads) {
   EXPECT_EQ(free_in_single_item, 2u);
   EXPECT_EQ(freeWorkerThreads(), 2u);  // back outside the items
   setWorkerThreads(0);
+}
+
+// Two items that wait for each other run on two CPUs when the process may use two: the pool's
+// helper is kept off the caller's CPU (a kernel that packs threads onto one vCPU otherwise
+// queued it behind the caller, and a frame's parallel parts ran on one core). The caller is
+// held on its CPU meanwhile, so that the kernel cannot move it onto the helper's.
+TEST(ParallelFor, TwoItemsRunOnTwoCpus) {
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  ASSERT_EQ(sched_getaffinity(0, sizeof allowed, &allowed), 0);
+  if (CPU_COUNT(&allowed) < 2) GTEST_SKIP() << "this process may use one CPU only";
+  parallelFor(
+      2, [](size_t) {}, 2);  // the pool's helper started with every CPU the process may use
+  cpu_set_t here;
+  CPU_ZERO(&here);
+  CPU_SET(sched_getcpu(), &here);
+  ASSERT_EQ(sched_setaffinity(0, sizeof here, &here), 0);
+  for (int round = 0; round < 20; ++round) {
+    std::atomic<int> started{0};
+    int cpus[2] = {-1, -1};
+    parallelFor(
+        2,
+        [&](size_t i) {
+          ++started;
+          // Until the other item has started too (at most a second, so that a loaded machine
+          // cannot hang the test): the two items cannot run one after the other on one thread.
+          const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+          while (started < 2 && std::chrono::steady_clock::now() < give_up) {
+          }
+          cpus[i] = sched_getcpu();
+        },
+        2);
+    EXPECT_NE(cpus[0], cpus[1]) << "round " << round;
+  }
+  ASSERT_EQ(sched_setaffinity(0, sizeof allowed, &allowed), 0);
 }
 
 // OSD learn34 (test/data: x y z and labels only) gave other objects with 2 threads than with 1,
