@@ -19,6 +19,13 @@ uint32_t orderKey(float value) {
   std::memcpy(&bits, &value, sizeof bits);
   return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
 }
+// The float of an order key.
+float valueOf(uint32_t key) {
+  const uint32_t bits = key & 0x80000000u ? key & 0x7fffffffu : ~key;
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+}
 bool keyLess(float a, float b) { return orderKey(a) < orderKey(b); }
 
 // The definition itself: for values that are not all finite, or too spread for the bins.
@@ -92,18 +99,6 @@ DensestSlab densestSlab(const std::vector<float>& values, float width) {
     bin_max[b] = std::max(bin_max[b], v);
   }
   for (size_t b = 0; b < bins; ++b) start[b + 1] += start[b];
-  // The values grouped by bin: the sorted order once each bin is sorted (done when needed).
-  std::vector<float> grouped(n);
-  {
-    std::vector<uint32_t> next(start.begin(), start.end() - 1);
-    for (const float v : values) grouped[next[binOf(v)]++] = v;
-  }
-  std::vector<char> bin_sorted(bins, 0);
-  auto sortBin = [&](size_t b) {
-    if (bin_sorted[b]) return;
-    std::sort(grouped.begin() + start[b], grouped.begin() + start[b + 1], keyLess);
-    bin_sorted[b] = 1;
-  };
   // The values a run starting at a value of bin b can hold at least (from the bin's smallest
   // value on, with x = that value + width) and at most (x = the bin's largest value + width):
   // every value in the bins below that of the run's end value x is <= x.
@@ -118,11 +113,56 @@ DensestSlab densestSlab(const std::vector<float>& values, float width) {
     if (start[b + 1] == start[b]) continue;
     surely = std::max(surely, valuesFromBinTo(b, bin_min[b] + width));
   }
-  // Only bins that can start a run that long can hold the longest run's first value: their
-  // begins in ascending order, each run's end found as in the sorted array (it only grows).
+  // Only bins that can start a run that long can hold the longest run's first value.
+  auto canStart = [&](size_t b) {
+    return start[b + 1] != start[b] && valuesFromBinThrough(b, bin_max[b] + width) >= surely;
+  };
+  // The bins the search below reads: those that can start the run, those its end values x (a
+  // start bin's values + width) fall in, and the last nonempty bin below those (where a run
+  // ends that holds no value of x's bin), and the last bin (x >= hi). Only their values are
+  // grouped by bin, a few per cent of a plane's; should another be read, it is grouped then.
+  std::vector<char> needed(bins, 0);
+  for (size_t b = 0; b < bins; ++b) {
+    if (!canStart(b)) continue;
+    needed[b] = 1;
+    const float first_x = bin_min[b] + width, last_x = bin_max[b] + width;
+    const size_t first_end = first_x >= hi ? bins - 1 : binOf(first_x);
+    const size_t last_end = last_x >= hi ? bins - 1 : binOf(last_x);
+    std::fill(needed.begin() + first_end, needed.begin() + last_end + 1, 1);
+    size_t below = first_end;
+    while (below > 0 && start[below] == start[below - 1]) --below;  // bins below it empty
+    if (below > 0) needed[below - 1] = 1;
+  }
+  // The needed bins' values grouped by bin: the sorted order once each bin is sorted (done when
+  // needed).
+  std::vector<float> grouped(n);
+  std::vector<uint32_t> next(start.begin(), start.end() - 1);
+  for (const float v : values) {
+    const size_t b = binOf(v);
+    if (needed[b]) grouped[next[b]++] = v;
+  }
+  std::vector<char> bin_sorted(bins, 0);
+  std::vector<uint32_t> keys;
+  auto sortBin = [&](size_t b) {
+    if (bin_sorted[b]) return;
+    if (!needed[b]) {
+      for (const float v : values) {
+        if (binOf(v) == b) grouped[next[b]++] = v;
+      }
+    }
+    // Sorted as their order keys, each computed once (not twice per comparison); the values
+    // back from the keys.
+    keys.clear();
+    for (uint32_t k = start[b]; k < start[b + 1]; ++k) keys.push_back(orderKey(grouped[k]));
+    std::sort(keys.begin(), keys.end());
+    for (uint32_t k = start[b]; k < start[b + 1]; ++k) grouped[k] = valueOf(keys[k - start[b]]);
+    bin_sorted[b] = 1;
+  };
+  // The candidate start bins' begins in ascending order, each run's end found as in the sorted
+  // array (it only grows).
   size_t best_begin = 0, best_end = 0;
   for (size_t b = 0; b < bins; ++b) {
-    if (start[b + 1] == start[b] || valuesFromBinThrough(b, bin_max[b] + width) < surely) continue;
+    if (!canStart(b)) continue;
     sortBin(b);
     size_t end = start[b];
     for (size_t begin = start[b]; begin < start[b + 1]; ++begin) {
