@@ -296,6 +296,20 @@ size_t nearIndices(const std::vector<float>& xs, const std::vector<float>& ys,
   return near;
 }
 
+// The rings of the n cells (cx, cy, cz) about the cell (x, y, z) (their Chebyshev distances from
+// it) into `ring`; the largest. In a loop of its own, eight cells at a time in the AVX2 clone
+// (SSE2 has no 32-bit integer abs or max: the default clone's loop is scalar).
+__attribute__((target_clones("avx2", "default"))) int ringsOf(const int* cx, const int* cy,
+                                                              const int* cz, size_t n, int x, int y,
+                                                              int z, int* ring) {
+  int last_ring = 0;
+  for (size_t j = 0; j < n; ++j) {
+    ring[j] = std::max(std::max(std::abs(cx[j] - x), std::abs(cy[j] - y)), std::abs(cz[j] - z));
+    last_ring = std::max(last_ring, ring[j]);
+  }
+  return last_ring;
+}
+
 }  // namespace
 
 template <typename PointT>
@@ -722,13 +736,8 @@ void GridSearch<PointT>::orderByRing(const OccupiedCells& cells, int x, int y, i
   const size_t n = cells.x.size();
   std::vector<int>& ring = by_ring.ring;
   ring.resize(n);
-  const int *cx = cells.x.data(), *cy = cells.y.data(), *cz = cells.z.data();
   int* r = ring.data();
-  int last_ring = 0;
-  for (size_t j = 0; j < n; ++j) {
-    r[j] = std::max(std::max(std::abs(cx[j] - x), std::abs(cy[j] - y)), std::abs(cz[j] - z));
-    last_ring = std::max(last_ring, r[j]);
-  }
+  const int last_ring = ringsOf(cells.x.data(), cells.y.data(), cells.z.data(), n, x, y, z, r);
   // A counting sort by ring.
   std::vector<uint32_t>& start = by_ring.ring_start;
   start.assign(static_cast<size_t>(last_ring) + 2, 0u);
