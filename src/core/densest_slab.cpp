@@ -1,11 +1,16 @@
 #include "tabletop_shapes/core/densest_slab.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/float4.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace tabletop_shapes {
 namespace {
@@ -19,6 +24,13 @@ uint32_t orderKey(float value) {
   std::memcpy(&bits, &value, sizeof bits);
   return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
 }
+// The float of an order key.
+float valueOf(uint32_t key) {
+  const uint32_t bits = key & 0x80000000u ? key & 0x7fffffffu : ~key;
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+}
 bool keyLess(float a, float b) { return orderKey(a) < orderKey(b); }
 
 // The definition itself: for values that are not all finite, or too spread for the bins.
@@ -31,6 +43,32 @@ DensestSlab bySorting(std::vector<float> sorted, float width) {
   }
   if (best_end == 0) return {};
   return {best_end - best_begin, sorted[best_begin], sorted[best_end - 1]};
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx2"))) void binsOfAvx2(const float* values, size_t n, float lo,
+                                                float inv_bin, uint32_t* bins) {
+  const __m256 low = _mm256_set1_ps(lo), scale = _mm256_set1_ps(inv_bin);
+  size_t j = 0;
+  for (; j + 8 <= n; j += 8) {
+    const __m256 at = _mm256_mul_ps(_mm256_sub_ps(_mm256_loadu_ps(values + j), low), scale);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(bins + j), _mm256_cvttps_epi32(at));
+  }
+  for (; j < n; ++j)
+    bins[j] = static_cast<uint32_t>(static_cast<int32_t>((values[j] - lo) * inv_bin));
+}
+#endif
+
+// The bins of the n values in [lo, hi], (v - lo) * inv_bin truncated (as densestSlab's binOf:
+// they lie below n + 4096, so truncating to 32 bits is truncating to 64), into `bins`. Eight at
+// a time where the CPU has AVX2 (the same float operations).
+void binsOf(const float* values, size_t n, float lo, float inv_bin, uint32_t* bins) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasAvx2()) return binsOfAvx2(values, n, lo, inv_bin, bins);
+#endif
+  for (size_t j = 0; j < n; ++j) {
+    bins[j] = static_cast<uint32_t>(static_cast<int32_t>((values[j] - lo) * inv_bin));
+  }
 }
 
 }  // namespace
@@ -83,27 +121,22 @@ DensestSlab densestSlab(const std::vector<float>& values, float width) {
     return static_cast<size_t>(static_cast<int64_t>((v - lo) * inv_bin));
   };
   const size_t bins = binOf(hi) + 1;
+  // Each value's bin, computed once for the two passes below (buffers kept from call to call,
+  // growing only: no zero filling per call).
+  thread_local std::vector<uint32_t> bin_of;
+  thread_local std::vector<float> grouped;
+  if (bin_of.size() < n) bin_of.resize(n), grouped.resize(n);
+  binsOf(values.data(), n, lo, inv_bin, bin_of.data());
   std::vector<uint32_t> start(bins + 1, 0);  // start[b]: the values in the bins below b
   std::vector<float> bin_min(bins, hi), bin_max(bins, lo);
-  for (const float v : values) {
-    const size_t b = binOf(v);
+  for (size_t j = 0; j < n; ++j) {
+    const float v = values[j];
+    const size_t b = bin_of[j];
     ++start[b + 1];
     bin_min[b] = std::min(bin_min[b], v);
     bin_max[b] = std::max(bin_max[b], v);
   }
   for (size_t b = 0; b < bins; ++b) start[b + 1] += start[b];
-  // The values grouped by bin: the sorted order once each bin is sorted (done when needed).
-  std::vector<float> grouped(n);
-  {
-    std::vector<uint32_t> next(start.begin(), start.end() - 1);
-    for (const float v : values) grouped[next[binOf(v)]++] = v;
-  }
-  std::vector<char> bin_sorted(bins, 0);
-  auto sortBin = [&](size_t b) {
-    if (bin_sorted[b]) return;
-    std::sort(grouped.begin() + start[b], grouped.begin() + start[b + 1], keyLess);
-    bin_sorted[b] = 1;
-  };
   // The values a run starting at a value of bin b can hold at least (from the bin's smallest
   // value on, with x = that value + width) and at most (x = the bin's largest value + width):
   // every value in the bins below that of the run's end value x is <= x.
@@ -118,11 +151,55 @@ DensestSlab densestSlab(const std::vector<float>& values, float width) {
     if (start[b + 1] == start[b]) continue;
     surely = std::max(surely, valuesFromBinTo(b, bin_min[b] + width));
   }
-  // Only bins that can start a run that long can hold the longest run's first value: their
-  // begins in ascending order, each run's end found as in the sorted array (it only grows).
+  // Only bins that can start a run that long can hold the longest run's first value.
+  auto canStart = [&](size_t b) {
+    return start[b + 1] != start[b] && valuesFromBinThrough(b, bin_max[b] + width) >= surely;
+  };
+  // The bins the search below reads: those that can start the run, those its end values x (a
+  // start bin's values + width) fall in, and the last nonempty bin below those (where a run
+  // ends that holds no value of x's bin), and the last bin (x >= hi). Only their values are
+  // grouped by bin, a few per cent of a plane's; should another be read, it is grouped then.
+  std::vector<char> needed(bins, 0);
+  for (size_t b = 0; b < bins; ++b) {
+    if (!canStart(b)) continue;
+    needed[b] = 1;
+    const float first_x = bin_min[b] + width, last_x = bin_max[b] + width;
+    const size_t first_end = first_x >= hi ? bins - 1 : binOf(first_x);
+    const size_t last_end = last_x >= hi ? bins - 1 : binOf(last_x);
+    std::fill(needed.begin() + first_end, needed.begin() + last_end + 1, 1);
+    size_t below = first_end;
+    while (below > 0 && start[below] == start[below - 1]) --below;  // bins below it empty
+    if (below > 0) needed[below - 1] = 1;
+  }
+  // The needed bins' values grouped by bin: the sorted order once each bin is sorted (done when
+  // needed).
+  std::vector<uint32_t> next(start.begin(), start.end() - 1);
+  for (size_t j = 0; j < n; ++j) {
+    const size_t b = bin_of[j];
+    if (needed[b]) grouped[next[b]++] = values[j];
+  }
+  std::vector<char> bin_sorted(bins, 0);
+  std::vector<uint32_t> keys;
+  auto sortBin = [&](size_t b) {
+    if (bin_sorted[b]) return;
+    if (!needed[b]) {
+      for (size_t j = 0; j < n; ++j) {
+        if (bin_of[j] == b) grouped[next[b]++] = values[j];
+      }
+    }
+    // Sorted as their order keys, each computed once (not twice per comparison); the values
+    // back from the keys.
+    keys.clear();
+    for (uint32_t k = start[b]; k < start[b + 1]; ++k) keys.push_back(orderKey(grouped[k]));
+    std::sort(keys.begin(), keys.end());
+    for (uint32_t k = start[b]; k < start[b + 1]; ++k) grouped[k] = valueOf(keys[k - start[b]]);
+    bin_sorted[b] = 1;
+  };
+  // The candidate start bins' begins in ascending order, each run's end found as in the sorted
+  // array (it only grows).
   size_t best_begin = 0, best_end = 0;
   for (size_t b = 0; b < bins; ++b) {
-    if (start[b + 1] == start[b] || valuesFromBinThrough(b, bin_max[b] + width) < surely) continue;
+    if (!canStart(b)) continue;
     sortBin(b);
     size_t end = start[b];
     for (size_t begin = start[b]; begin < start[b + 1]; ++begin) {

@@ -296,6 +296,20 @@ size_t nearIndices(const std::vector<float>& xs, const std::vector<float>& ys,
   return near;
 }
 
+// The rings of the n cells (cx, cy, cz) about the cell (x, y, z) (their Chebyshev distances from
+// it) into `ring`; the largest. In a loop of its own, eight cells at a time in the AVX2 clone
+// (SSE2 has no 32-bit integer abs or max: the default clone's loop is scalar).
+__attribute__((target_clones("avx2", "default"))) int ringsOf(const int* cx, const int* cy,
+                                                              const int* cz, size_t n, int x, int y,
+                                                              int z, int* ring) {
+  int last_ring = 0;
+  for (size_t j = 0; j < n; ++j) {
+    ring[j] = std::max(std::max(std::abs(cx[j] - x), std::abs(cy[j] - y)), std::abs(cz[j] - z));
+    last_ring = std::max(last_ring, ring[j]);
+  }
+  return last_ring;
+}
+
 }  // namespace
 
 template <typename PointT>
@@ -438,13 +452,21 @@ typename GridSearch<PointT>::Run GridSearch<PointT>::runAt(size_t begin) const {
 template <typename PointT>
 template <typename Visit>
 void GridSearch<PointT>::visitRing(int cx, int cy, int cz, int ring, Visit&& visit) const {
+  visitRingCells(cx, cy, cz, ring, [&](const Cell& cell) {
+    for (uint32_t i = cell.begin; i < cell.end; ++i) visit(points_[i]);
+  });
+}
+
+template <typename PointT>
+template <typename VisitCell>
+void GridSearch<PointT>::visitRingCells(int cx, int cy, int cz, int ring,
+                                        VisitCell&& visitOccupied) const {
   auto visitCell = [&](int x, int y, int z) {
     if (x < low_[0] || x > high_[0] || y < low_[1] || y > high_[1] || z < low_[2] || z > high_[2]) {
       return;
     }
     const Cell* cell = find(keyOf(x, y, z));
-    if (!cell) return;
-    for (uint32_t i = cell->begin; i < cell->end; ++i) visit(points_[i]);
+    if (cell) visitOccupied(*cell);
   };
   if (ring == 0) {
     visitCell(cx, cy, cz);
@@ -551,14 +573,43 @@ int GridSearch<PointT>::nearestKSearch(const PointT& point, int k, pcl::Indices&
 }
 
 template <typename PointT>
-template <typename Start, typename Gather, typename Select>
-void GridSearch<PointT>::forEachPointInBlocks(size_t first, size_t last, Start&& start,
-                                              Gather&& gather, Select&& select) const {
+void GridSearch<PointT>::gatherBlock(int cx, int cy, int cz, std::vector<float>& xs,
+                                     std::vector<float>& ys, std::vector<float>& zs,
+                                     std::vector<int>* indices) const {
+  // The cells' ranges first, then each array sized once and filled: a push_back per point and
+  // array cost three times the copy.
+  uint32_t begins[27], ends[27];
+  int cells = 0;
+  size_t count = 0;
+  for (int ring = 0; ring <= 1; ++ring) {
+    visitRingCells(cx, cy, cz, ring, [&](const Cell& cell) {
+      begins[cells] = cell.begin, ends[cells++] = cell.end;
+      count += cell.end - cell.begin;
+    });
+  }
+  xs.resize(count), ys.resize(count), zs.resize(count);
+  float *x = xs.data(), *y = ys.data(), *z = zs.data();
+  const Entry* const entries = points_.data();
+  for (int c = 0; c < cells; ++c) {
+    for (uint32_t i = begins[c]; i < ends[c]; ++i)
+      *x++ = entries[i].x, *y++ = entries[i].y, *z++ = entries[i].z;
+  }
+  if (!indices) return;
+  indices->resize(count);
+  int* index = indices->data();
+  for (int c = 0; c < cells; ++c) {
+    for (uint32_t i = begins[c]; i < ends[c]; ++i) *index++ = entries[i].index;
+  }
+}
+
+template <typename PointT>
+template <typename Gather, typename Select>
+void GridSearch<PointT>::forEachPointInBlocks(size_t first, size_t last, Gather&& gather,
+                                              Select&& select) const {
   for (size_t begin = first; begin < last;) {
     const Run run = runAt(begin);
     // Every point of the 3 x 3 x 3 block of cells around this one.
-    start();
-    for (int ring = 0; ring <= 1; ++ring) visitRing(run.cx, run.cy, run.cz, ring, gather);
+    gather(run.cx, run.cy, run.cz);
     for (size_t i = begin; i < run.end; ++i) {
       const Entry& q = points_[i];
       // The block holds every point closer than 1 + inset cells (inset: the distance from q
@@ -607,8 +658,11 @@ void GridSearch<PointT>::forEachNearestK(
     const Entry* previous = nullptr;
     float previous_kth = 0.0f;
     forEachPointInBlocks(
-        first, last, [&] { xs.clear(), ys.clear(), zs.clear(), previous = nullptr; },
-        [&](const Entry& e) { xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z); },
+        first, last,
+        [&](int cx, int cy, int cz) {
+          gatherBlock(cx, cy, cz, xs, ys, zs, nullptr);
+          previous = nullptr;
+        },
         [&](const Entry& q, float covered_squared) {
           squaredDistances(xs, ys, zs, q.x, q.y, q.z, block_squared);
           // Keeps the candidates with squared distance <= bound: when they are at least k, the
@@ -682,13 +736,8 @@ void GridSearch<PointT>::orderByRing(const OccupiedCells& cells, int x, int y, i
   const size_t n = cells.x.size();
   std::vector<int>& ring = by_ring.ring;
   ring.resize(n);
-  const int *cx = cells.x.data(), *cy = cells.y.data(), *cz = cells.z.data();
   int* r = ring.data();
-  int last_ring = 0;
-  for (size_t j = 0; j < n; ++j) {
-    r[j] = std::max(std::max(std::abs(cx[j] - x), std::abs(cy[j] - y)), std::abs(cz[j] - z));
-    last_ring = std::max(last_ring, r[j]);
-  }
+  const int last_ring = ringsOf(cells.x.data(), cells.y.data(), cells.z.data(), n, x, y, z, r);
   // A counting sort by ring.
   std::vector<uint32_t>& start = by_ring.ring_start;
   start.assign(static_cast<size_t>(last_ring) + 2, 0u);
@@ -799,10 +848,7 @@ void GridSearch<PointT>::forEachNearestKIndices(
     std::vector<uint64_t> keys;
     pcl::Indices nearest;
     forEachPointInBlocks(
-        first, last, [&] { xs.clear(), ys.clear(), zs.clear(), indices.clear(); },
-        [&](const Entry& e) {
-          xs.push_back(e.x), ys.push_back(e.y), zs.push_back(e.z), indices.push_back(e.index);
-        },
+        first, last, [&](int cx, int cy, int cz) { gatherBlock(cx, cy, cz, xs, ys, zs, &indices); },
         [&](const Entry& q, float covered_squared) {
           // (distance, index) as one integer, as forEachRadiusNeighbours: ordered as
           // nearestKSearch orders its pairs, ties by index.

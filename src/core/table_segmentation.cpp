@@ -221,40 +221,179 @@ bool planeThrough(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eige
   return true;
 }
 
+// Which points of a cloud lie in a band about a plane: their signed distance in [low, high]
+// (inclusive) or (low, high), each computed with Plane::signedDistance's float operations in its
+// order (Eigen's dot: nx x + (ny y + nz z), then + d), so the same points pass as with
+// signedDistance. Points with a coordinate that is not finite have no finite distance and never
+// pass.
+struct PlaneBand {
+  Plane plane;
+  float low, high;
+  bool inclusive;
+  bool contains(const Eigen::Vector3f& p) const {
+    const float distance = plane.signedDistance(p);
+    return inclusive ? distance >= low && distance <= high : distance > low && distance < high;
+  }
+};
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Points p (the lower half) and q (the upper) of a cloud, x y z and the fourth float each.
+__attribute__((target("avx2"), always_inline)) inline __m256 pointPair(const Point* p,
+                                                                       const Point* q) {
+  return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(&p->x)), _mm_loadu_ps(&q->x), 1);
+}
+
+// bandMasks eight lanes at a time (no fused multiply-add: the same floats).
+__attribute__((target("avx2"))) void bandMasksAvx2(const Point* points, size_t blocks,
+                                                   const PlaneBand& band, uint8_t* masks) {
+  const __m256 nx = _mm256_set1_ps(band.plane.normal.x()),
+               ny = _mm256_set1_ps(band.plane.normal.y()),
+               nz = _mm256_set1_ps(band.plane.normal.z()), d = _mm256_set1_ps(band.plane.d);
+  const __m256 low = _mm256_set1_ps(band.low), high = _mm256_set1_ps(band.high);
+  for (size_t b = 0; b < blocks; ++b, points += 8) {
+    // Points 0-3 in the lower halves, 4-7 in the upper: transposed within each half, the lanes
+    // hold the points in order.
+    const __m256 p0 = pointPair(points, points + 4), p1 = pointPair(points + 1, points + 5),
+                 p2 = pointPair(points + 2, points + 6), p3 = pointPair(points + 3, points + 7);
+    const __m256d low01 = _mm256_castps_pd(_mm256_unpacklo_ps(p0, p1)),
+                  low23 = _mm256_castps_pd(_mm256_unpacklo_ps(p2, p3));
+    const __m256 x = _mm256_castpd_ps(_mm256_unpacklo_pd(low01, low23));
+    const __m256 y = _mm256_castpd_ps(_mm256_unpackhi_pd(low01, low23));
+    const __m256 z =
+        _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(_mm256_unpackhi_ps(p0, p1)),
+                                            _mm256_castps_pd(_mm256_unpackhi_ps(p2, p3))));
+    const __m256 distance =
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(nx, x),
+                                    _mm256_add_ps(_mm256_mul_ps(ny, y), _mm256_mul_ps(nz, z))),
+                      d);
+    const __m256 in = band.inclusive ? _mm256_and_ps(_mm256_cmp_ps(distance, low, _CMP_GE_OQ),
+                                                     _mm256_cmp_ps(distance, high, _CMP_LE_OQ))
+                                     : _mm256_and_ps(_mm256_cmp_ps(distance, low, _CMP_GT_OQ),
+                                                     _mm256_cmp_ps(distance, high, _CMP_LT_OQ));
+    masks[b] = static_cast<uint8_t>(_mm256_movemask_ps(in));
+  }
+}
+#endif
+
+// Which of the points [0, 8 blocks) of `points` lie in the band: bit j of masks[b] for point
+// 8 b + j. Eight lanes at a time where the CPU has AVX2, else four.
+void bandMasks(const Point* points, size_t blocks, const PlaneBand& band, uint8_t* masks) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasAvx2()) return bandMasksAvx2(points, blocks, band, masks);
+#endif
+#ifdef __SSE__
+  const Float4 nx = broadcast(band.plane.normal.x()), ny = broadcast(band.plane.normal.y()),
+               nz = broadcast(band.plane.normal.z()), d = broadcast(band.plane.d);
+  const Float4 low = broadcast(band.low), high = broadcast(band.high);
+  for (size_t b = 0; b < 2 * blocks; ++b, points += 4) {
+    Float4 x, y, z;
+    coordinatesOfFour(points, x, y, z);
+    const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
+    const Int4 in = band.inclusive ? (distance >= low) & (distance <= high)
+                                   : (distance > low) & (distance < high);
+    const unsigned lanes = lanesOf(in);
+    masks[b / 2] = static_cast<uint8_t>(b % 2 ? masks[b / 2] | lanes << 4 : lanes);
+  }
+#else
+  for (size_t k = 0; k < 8 * blocks; ++k) {
+    const unsigned in = band.contains(points[k].getVector3fMap());
+    masks[k / 8] = static_cast<uint8_t>(k % 8 ? masks[k / 8] | in << (k % 8) : in);
+  }
+#endif
+}
+
+// Calls visitBlock(first, masks, blocks) for the cloud's points from `first` on, blocks of eight
+// at a time, with their bandMasks, up to 1024 points a call (so that a visit that stops early
+// leaves few computed in vain), then visitRest(i) for each of the last cloud.size() % 8 points
+// in the band, in order, while both return true.
+template <typename VisitBlocks, typename VisitRest>
+void forEachBandMask(const Cloud& cloud, const PlaneBand& band, VisitBlocks&& visitBlocks,
+                     VisitRest&& visitRest) {
+  constexpr size_t kBlocks = 128;
+  uint8_t masks[kBlocks];
+  const size_t n = cloud.size();
+  size_t i = 0;
+  while (n - i >= 8) {
+    const size_t blocks = std::min(kBlocks, (n - i) / 8);
+    bandMasks(cloud.points.data() + i, blocks, band, masks);
+    if (!visitBlocks(i, masks, blocks)) return;
+    i += 8 * blocks;
+  }
+  for (; i < n; ++i) {
+    if (band.contains(cloud[i].getVector3fMap()) && !visitRest(static_cast<int>(i))) return;
+  }
+}
+
 // Calls visit(i) for the points of `cloud` whose signed distance from `plane` lies within
-// [low, high] (inclusive) or (low, high), in the cloud's order, while visit returns true. The
-// distances of four points at a time come from lanes that make Plane::signedDistance's float
-// operations in its order (Eigen's dot: nx x + (ny y + nz z), then + d), so the same points
-// pass as with signedDistance; a frame's passes over its ~100k points (object points, points
-// below a candidate, the hidden table's) keep a few thousand. Points with a coordinate that is
-// not finite have no finite distance and never pass.
+// [low, high] (inclusive) or (low, high), in the cloud's order, while visit returns true (as
+// PlaneBand tells them). A frame's passes over its ~100k points (object points, points below a
+// candidate, the hidden table's) keep a few thousand.
 template <typename Visit>
 void forEachPointInBand(const Cloud& cloud, const Plane& plane, float low, float high,
                         bool inclusive, Visit&& visit) {
-  auto inBand = [&](float distance) {
-    return inclusive ? distance >= low && distance <= high : distance > low && distance < high;
+  forEachBandMask(
+      cloud, PlaneBand{plane, low, high, inclusive},
+      [&](size_t first, const uint8_t* masks, size_t blocks) {
+        for (size_t b = 0; b < blocks; ++b) {
+          for (unsigned lanes = masks[b]; lanes != 0; lanes &= lanes - 1) {
+            if (!visit(static_cast<int>(first + 8 * b) + __builtin_ctz(lanes))) return false;
+          }
+        }
+        return true;
+      },
+      visit);
+}
+
+// The points of `cloud` within half_width of `plane` (|signed distance| <= half_width, as
+// forEachPointInBand's inclusive band tests them) and farther than `threshold` from every plane
+// of `others`, in the cloud's order, as `within`. Their indices stored four at a time (the lane
+// numbers of each half of a mask from a table) instead of one call per point: onEveryPoint's
+// three passes keep most of the frame (~80 k points of the 4-object speed scene), where the
+// visit per point cost twice the distances of all.
+void collectInBand(const Cloud& cloud, const Plane& plane, float half_width,
+                   const std::vector<Plane>& others, float threshold, std::vector<int>& within) {
+  // kInOrder[mask]: the lanes set in the 4-bit mask, in order (then zeros); kCount: how many.
+  static constexpr int kInOrder[16][4] = {{0, 0, 0, 0}, {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0},
+                                          {2, 0, 0, 0}, {0, 2, 0, 0}, {1, 2, 0, 0}, {0, 1, 2, 0},
+                                          {3, 0, 0, 0}, {0, 3, 0, 0}, {1, 3, 0, 0}, {0, 1, 3, 0},
+                                          {2, 3, 0, 0}, {0, 2, 3, 0}, {1, 2, 3, 0}, {0, 1, 2, 3}};
+  static constexpr uint8_t kCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+  within.resize(cloud.size() + 4);  // room for the four lanes stored past the last one kept
+  int* const out = within.data();
+  size_t kept = 0;
+  auto nearOther = [&](const Eigen::Vector3f& p) {
+    return std::any_of(others.begin(), others.end(), [&](const Plane& other) {
+      return std::abs(other.signedDistance(p)) <= threshold;
+    });
   };
-  size_t i = 0;
-#ifdef __SSE__
-  const Float4 nx = broadcast(plane.normal.x()), ny = broadcast(plane.normal.y()),
-               nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
-  const Float4 lowest = broadcast(low), highest = broadcast(high);
-  for (; i + 4 <= cloud.size(); i += 4) {
-    Float4 x, y, z;
-    coordinatesOfFour(&cloud[i], x, y, z);
-    const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
-    const Int4 within = inclusive ? (distance >= lowest) & (distance <= highest)
-                                  : (distance > lowest) & (distance < highest);
-    for (unsigned lanes = lanesOf(within); lanes != 0; lanes &= lanes - 1) {
-      if (!visit(static_cast<int>(i) + __builtin_ctz(lanes))) return;
-    }
-  }
-#endif
-  for (; i < cloud.size(); ++i) {
-    if (inBand(plane.signedDistance(cloud[i].getVector3fMap())) && !visit(static_cast<int>(i))) {
-      return;
-    }
-  }
+  uint8_t near_others[128];
+  forEachBandMask(
+      cloud, PlaneBand{plane, -half_width, half_width, true},
+      [&](size_t first, uint8_t* masks, size_t blocks) {
+        for (const Plane& other : others) {  // |distance| <= threshold: within [-it, it]
+          bandMasks(cloud.points.data() + first, blocks,
+                    PlaneBand{other, -threshold, threshold, true}, near_others);
+          for (size_t b = 0; b < blocks; ++b) masks[b] &= ~near_others[b];
+        }
+        auto store = [&](unsigned lanes, int at) {
+          Int4 order;
+          std::memcpy(&order, kInOrder[lanes], sizeof order);
+          const Int4 indices = order + at;
+          std::memcpy(out + kept, &indices, sizeof indices);
+          kept += kCount[lanes];
+        };
+        for (size_t b = 0; b < blocks; ++b) {
+          const int at = static_cast<int>(first + 8 * b);
+          store(masks[b] & 15u, at);
+          store(masks[b] >> 4, at + 4);
+        }
+        return true;
+      },
+      [&](int i) {
+        if (!nearOther(cloud[i].getVector3fMap())) out[kept++] = i;
+        return true;
+      });
+  within.resize(kept);
 }
 
 // RANSAC's scoring points as four-float columns of x, y and z: a hypothesis's inliers are
@@ -1182,22 +1321,8 @@ Candidate onEveryPoint(const Cloud& frame, const Candidate& found, const TablePa
   Candidate table;
   table.plane = found.plane;
   table.found_before = found.found_before;
-  // Most of the frame is the table (~76 k of its points in each of the three passes on the
-  // 4-object speed scene): the indices are written into room for every point, not pushed back
-  // one by one (a capacity test and the vector's end reloaded per point).
   auto collect = [&](const Plane& plane, float half_width, std::vector<int>& within) {
-    within.resize(frame.size());
-    int* const out = within.data();
-    size_t kept = 0;
-    forEachPointInBand(frame, plane, -half_width, half_width, true, [&](int i) {
-      const Eigen::Vector3f p = frame[i].getVector3fMap();
-      for (const Plane& before : found.found_before) {
-        if (std::abs(before.signedDistance(p)) <= params.distance_threshold) return true;
-      }
-      out[kept++] = i;
-      return true;
-    });
-    within.resize(kept);
+    collectInBand(frame, plane, half_width, found.found_before, params.distance_threshold, within);
   };
   collect(table.plane, params.distance_threshold, table.inliers);
   refitOnDensestSlab(frame, constraint, params.distance_threshold, collect, table.plane,
@@ -1322,6 +1447,38 @@ TableResult TableSegmenter::segment(const CloudConstPtr& cloud) const {
 
 namespace {
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define TABLETOP_SHAPES_PLANE_SUMS_AVX2 1
+// refinePlane's sums over the points `indices` (valid, finite) four doubles at a time, x y z and
+// the point's fourth float (a lane not used): `sums` of the coordinates; about `centre` (its
+// fourth 0), `squares` of the centred coordinates {xx, yy, xz, -} and `products` {xy, yz, zz,
+// -}. Each lane adds the products refinePlane's pairs make (x z as z x), in the same order: the
+// same doubles, in half the instructions.
+__attribute__((target("avx2"))) void coordinateSumsAvx2(const Cloud& points,
+                                                        const std::vector<int>& indices,
+                                                        double sums[4]) {
+  __m256d sum = _mm256_setzero_pd();
+  for (const int i : indices) sum = _mm256_add_pd(sum, _mm256_cvtps_pd(_mm_loadu_ps(&points[i].x)));
+  _mm256_storeu_pd(sums, sum);
+}
+
+__attribute__((target("avx2"))) void scatterSumsAvx2(const Cloud& points,
+                                                     const std::vector<int>& indices,
+                                                     const double centre[4], double squares[4],
+                                                     double products[4]) {
+  const __m256d mean = _mm256_loadu_pd(centre);
+  __m256d square_sums = _mm256_setzero_pd(), product_sums = _mm256_setzero_pd();
+  for (const int i : indices) {
+    const __m256d q = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(&points[i].x)), mean);
+    // q times {x, y, x, y} and {y, z, z, w}.
+    square_sums = _mm256_add_pd(square_sums, _mm256_mul_pd(q, _mm256_permute4x64_pd(q, 0x44)));
+    product_sums = _mm256_add_pd(product_sums, _mm256_mul_pd(q, _mm256_permute4x64_pd(q, 0xe9)));
+  }
+  _mm256_storeu_pd(squares, square_sums);
+  _mm256_storeu_pd(products, product_sums);
+}
+#endif
+
 // refinePlaneOLS; kFinite: the indices are valid and their points finite (RANSAC's points,
 // finite by construction), so neither is tested.
 template <bool kFinite>
@@ -1344,13 +1501,24 @@ bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& pl
   auto finite = [](const Point& p) {
     return kFinite || (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
   };
-  for (int i : indices) {
-    if (!kFinite && (i < 0 || static_cast<size_t>(i) >= points.size())) return false;
-    const Point& p = points[i];
-    if (!finite(p)) continue;
-    sum_xy += Pair{p.x, p.y};
-    sum_z += p.z;
-    ++count;
+#ifdef TABLETOP_SHAPES_PLANE_SUMS_AVX2
+  const bool four_lanes = kFinite && cpuHasAvx2();
+#else
+  const bool four_lanes = false;
+#endif
+  if (four_lanes) {
+    double sums[4];
+    coordinateSumsAvx2(points, indices, sums);
+    sum_xy = Pair{sums[0], sums[1]}, sum_z = sums[2], count = indices.size();
+  } else {
+    for (int i : indices) {
+      if (!kFinite && (i < 0 || static_cast<size_t>(i) >= points.size())) return false;
+      const Point& p = points[i];
+      if (!finite(p)) continue;
+      sum_xy += Pair{p.x, p.y};
+      sum_z += p.z;
+      ++count;
+    }
   }
   if (count < 3) return false;
   Eigen::Vector3d mean(sum_xy[0], sum_xy[1], sum_z);
@@ -1358,15 +1526,23 @@ bool refinePlane(const Cloud& points, const std::vector<int>& indices, Plane& pl
   const Pair mean_xy = {mean.x(), mean.y()};
   // Paired so that two of the three products need no lane shuffle of their own.
   Pair xx_yy = {0.0, 0.0}, xy_yz = {0.0, 0.0}, xz_zz = {0.0, 0.0};
-  for (int i : indices) {
-    const Point& p = points[i];
-    if (!finite(p)) continue;
-    const Pair xy = Pair{p.x, p.y} - mean_xy;
-    const double x = xy[0], y = xy[1], z = p.z - mean.z();
-    const Pair zz = {z, z};
-    xx_yy += xy * xy;
-    xy_yz += xy * Pair{y, z};
-    xz_zz += Pair{x, z} * zz;
+  if (four_lanes) {
+    const double centre[4] = {mean.x(), mean.y(), mean.z(), 0.0};
+    double squares[4], products[4];
+    scatterSumsAvx2(points, indices, centre, squares, products);
+    xx_yy = Pair{squares[0], squares[1]}, xy_yz = Pair{products[0], products[1]};
+    xz_zz = Pair{squares[2], products[2]};
+  } else {
+    for (int i : indices) {
+      const Point& p = points[i];
+      if (!finite(p)) continue;
+      const Pair xy = Pair{p.x, p.y} - mean_xy;
+      const double x = xy[0], y = xy[1], z = p.z - mean.z();
+      const Pair zz = {z, z};
+      xx_yy += xy * xy;
+      xy_yz += xy * Pair{y, z};
+      xz_zz += Pair{x, z} * zz;
+    }
   }
   Eigen::Matrix3d scatter;
   scatter << xx_yy[0], xy_yz[0], xz_zz[0], xy_yz[0], xx_yy[1], xy_yz[1], xz_zz[0], xy_yz[1],

@@ -95,12 +95,15 @@ class GridSearch : public pcl::search::Search<PointT> {
   };
   Run runAt(size_t begin) const;
   // For each run of points_[first, last) in one cell (first and last: run starts or the end):
-  // start(), gather(entry) for every point of the 3 x 3 x 3 block of cells around it, then
-  // select(q, covered_squared) for each point q of the run: the block holds every point whose
-  // squared distance from q is at most covered_squared.
-  template <typename Start, typename Gather, typename Select>
-  void forEachPointInBlocks(size_t first, size_t last, Start&& start, Gather&& gather,
-                            Select&& select) const;
+  // gather(cx, cy, cz) with the cell's numbers, then select(q, covered_squared) for each point q
+  // of the run: the 3 x 3 x 3 block of cells around it holds every point whose squared distance
+  // from q is at most covered_squared.
+  template <typename Gather, typename Select>
+  void forEachPointInBlocks(size_t first, size_t last, Gather&& gather, Select&& select) const;
+  // The coordinates (and, when `indices` is given, the input indices) of the points of the
+  // 3 x 3 x 3 block of cells around (cx, cy, cz), as visitRing's rings 0 and 1 visit them.
+  void gatherBlock(int cx, int cy, int cz, std::vector<float>& xs, std::vector<float>& ys,
+                   std::vector<float>& zs, std::vector<int>* indices) const;
   // The start of the run holding points_[position], or of the next run when it starts inside
   // one; points_.size() at the end.
   size_t runStartAtOrAfter(size_t position) const;
@@ -139,6 +142,9 @@ class GridSearch : public pcl::search::Search<PointT> {
   // (Chebyshev distance exactly `ring`).
   template <typename Visit>
   void visitRing(int cx, int cy, int cz, int ring, Visit&& visit) const;
+  // The same with visitOccupied(cell) for each occupied cell of the ring.
+  template <typename VisitCell>
+  void visitRingCells(int cx, int cy, int cz, int ring, VisitCell&& visitOccupied) const;
 
   float cell_size_, inv_cell_;
   std::vector<Entry> points_;  // sorted by cell
