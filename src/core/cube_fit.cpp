@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <queue>
@@ -86,15 +87,24 @@ bool refineFace(const NormalCloud& cloud, PlaneSupport& all, const CubeParams& p
   // Inliers (§3.2): distance below the threshold AND point normal within the angular threshold
   // of the plane normal (either sign: RANSAC planes are unoriented).
   const float cos_threshold = std::cos(params.angle_threshold);
-  for (int iteration = 0; iteration < kRefineIterations; ++iteration) {
+  // A refit that returns the plane it started from, to the bit, settles it: every later round
+  // would collect the same support and return the same plane again, and the support already
+  // collected is the final one.
+  bool settled = false;
+  for (int iteration = 0; iteration < kRefineIterations && !settled; ++iteration) {
     face.support.clear();
     all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
                 nullptr);
+    const float before[4] = {face.normal.x(), face.normal.y(), face.normal.z(), face.d};
     if (!fitPlane(cloud, face.support, face.normal, face.d)) return false;
+    const float after[4] = {face.normal.x(), face.normal.y(), face.normal.z(), face.d};
+    settled = std::memcmp(before, after, sizeof before) == 0;
   }
-  face.support.clear();
-  all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
-              nullptr);
+  if (!settled) {
+    face.support.clear();
+    all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
+                nullptr);
+  }
   float agreement = 0.0f;
   for (int i : face.support) agreement += face.normal.dot(cloud[i].getNormalVector3fMap());
   if (agreement < 0.0f) {
