@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <random>
 
@@ -353,7 +354,11 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
 
   // ---- pop planes by mean angular distance; keep distinct, mutually perpendicular ones ----
   std::vector<Face> faces;
-  PlaneSupport all_points(object, all);
+  // With at most kScoringPoints the scoring points are all the points, in their order: their
+  // PlaneSupport serves (each collect writes all the state it reads).
+  std::optional<PlaneSupport> all_points_of_their_own;
+  if (scoring.size() < all.size()) all_points_of_their_own.emplace(object, all);
+  PlaneSupport& all_points = all_points_of_their_own ? *all_points_of_their_own : scoring_points;
   const int max_planes = std::clamp(params.max_planes, 1, 3);
   while (!queue.empty() && static_cast<int>(faces.size()) < max_planes) {
     Candidate candidate = queue.top();
