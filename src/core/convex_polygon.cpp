@@ -7,6 +7,11 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace tabletop_shapes {
 
@@ -22,14 +27,7 @@ constexpr float kSurelyInside = 1e-5f;  // [m]
 // The hull is the same.
 void dropSurelyInside(std::vector<Eigen::Vector2f>& points) {
   if (points.size() < 16) return;
-  const ExtremeOctagon octagon(points, kSurelyInside);
-  size_t kept = 0;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector2f p = points[i];
-    points[kept] = p;
-    kept += !octagon.surelyInside(p);
-  }
-  points.resize(kept);
+  ExtremeOctagon(points, kSurelyInside).keepNotSurelyInside(points);
 }
 
 // Andrew's monotone chain over points without those surely inside.
@@ -60,25 +58,49 @@ std::vector<Eigen::Vector2f> monotoneChain(std::vector<Eigen::Vector2f> points) 
 // that passing them without AVX changes the ABI does not apply.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
-// The first points reaching the highest and the lowest values along x, x + y, y and y - x, a
-// lane's worth of points at a time: each lane keeps its own (the first of its points reaching
-// them, the float operations of the plain loop: x + y, y - x), and the lanes are merged at the
-// end (the highest value, the lowest index among the lanes holding it), so the points of the
-// plain loop over all the points, whatever the width. Values never above -max (below max) and
-// NaNs reach nothing: with no point reaching a direction's extreme, its index is 0.
+// The lanes of kLanes points: their types, and the bits of a comparison's lanes (bit i: lane i).
 template <int kLanes>
 struct LaneTypes;
 template <>
 struct LaneTypes<4> {
   using Floats = Float4;
   using Ints = Int4;
+  static unsigned bits(Int4 mask) { return lanesOf(mask); }
 };
+#if defined(__x86_64__) && defined(__GNUC__)
 template <>
 struct LaneTypes<8> {
   using Floats = float __attribute__((vector_size(32)));
   using Ints = int __attribute__((vector_size(32)));
+  __attribute__((target("avx2"))) static unsigned bits(Ints mask) {
+    return static_cast<unsigned>(_mm256_movemask_ps((__m256)mask));
+  }
 };
+#endif
 
+// x and y of points k .. k + kLanes - 1 of `xy` (x y pairs).
+template <int kLanes>
+[[gnu::always_inline]] inline void loadPoints(const float* xy, size_t k,
+                                              typename LaneTypes<kLanes>::Floats& x,
+                                              typename LaneTypes<kLanes>::Floats& y) {
+  typename LaneTypes<kLanes>::Floats first, second;
+  std::memcpy(&first, xy + 2 * k, sizeof first);
+  std::memcpy(&second, xy + 2 * k + kLanes, sizeof second);
+  if constexpr (kLanes == 4) {
+    x = __builtin_shufflevector(first, second, 0, 2, 4, 6);
+    y = __builtin_shufflevector(first, second, 1, 3, 5, 7);
+  } else {
+    x = __builtin_shufflevector(first, second, 0, 2, 4, 6, 8, 10, 12, 14);
+    y = __builtin_shufflevector(first, second, 1, 3, 5, 7, 9, 11, 13, 15);
+  }
+}
+
+// The first points reaching the highest and the lowest values along x, x + y, y and y - x, a
+// lane's worth of points at a time: each lane keeps its own (the first of its points reaching
+// them, the float operations of the plain loop: x + y, y - x), and the lanes are merged at the
+// end (the highest value, the lowest index among the lanes holding it), so the points of the
+// plain loop over all the points, whatever the width. Values never above -max (below max) and
+// NaNs reach nothing: with no point reaching a direction's extreme, its index is 0.
 template <int kLanes>
 struct FirstExtremes {
   using Floats = typename LaneTypes<kLanes>::Floats;
@@ -110,17 +132,8 @@ struct FirstExtremes {
     for (int lane = 0; lane < kLanes; ++lane) index[lane] = lane;
     size_t k = 0;
     for (; k + kLanes <= count; k += kLanes, index += kLanes) {
-      Floats first, second;
-      std::memcpy(&first, xy + 2 * k, sizeof first);
-      std::memcpy(&second, xy + 2 * k + kLanes, sizeof second);
       Floats x, y;
-      if constexpr (kLanes == 4) {
-        x = __builtin_shufflevector(first, second, 0, 2, 4, 6);
-        y = __builtin_shufflevector(first, second, 1, 3, 5, 7);
-      } else {
-        x = __builtin_shufflevector(first, second, 0, 2, 4, 6, 8, 10, 12, 14);
-        y = __builtin_shufflevector(first, second, 1, 3, 5, 7, 9, 11, 13, 15);
-      }
+      loadPoints<kLanes>(xy, k, x, y);
       add(x, y, index);
     }
     if (k < count) {
@@ -176,6 +189,49 @@ void firstExtremes(const std::vector<Eigen::Vector2f>& points, int (&at_highest)
   firstExtremesInLanes<4>(points, at_highest, at_lowest);
 }
 
+// ExtremeOctagon::keepNotSurelyInside on the points before the last whole lane's worth: each
+// lane tests its point against the eight edges (`nx`, `ny`, `offset`) with surelyInside's float
+// operations. The number of points tested (a multiple of kLanes) and of those kept.
+template <int kLanes>
+[[gnu::always_inline]] inline std::pair<size_t, size_t> keepNotSurelyInsideInLanes(
+    const Float4 (&nx)[2], const Float4 (&ny)[2], const Float4 (&offset)[2],
+    std::vector<Eigen::Vector2f>& points) {
+  using Floats = typename LaneTypes<kLanes>::Floats;
+  using Ints = typename LaneTypes<kLanes>::Ints;
+  Floats edge_nx[8], edge_ny[8], edge_offset[8];
+  for (int edge = 0; edge < 8; ++edge) {
+    edge_nx[edge] = Floats{} + nx[edge / 4][edge % 4];
+    edge_ny[edge] = Floats{} + ny[edge / 4][edge % 4];
+    edge_offset[edge] = Floats{} + offset[edge / 4][edge % 4];
+  }
+  const float* xy = points.front().data();
+  size_t k = 0, kept = 0;
+  for (; k + kLanes <= points.size(); k += kLanes) {
+    Floats x, y;
+    loadPoints<kLanes>(xy, k, x, y);
+    Ints outside = {};
+#pragma GCC unroll 8
+    for (int edge = 0; edge < 8; ++edge) {
+      outside |= edge_nx[edge] * x + edge_ny[edge] * y <= edge_offset[edge];
+    }
+    const unsigned kept_lanes = LaneTypes<kLanes>::bits(outside);
+    for (int lane = 0; lane < kLanes; ++lane) {
+      const Eigen::Vector2f p = points[k + lane];  // read before any write at or past it
+      points[kept] = p;
+      kept += (kept_lanes >> lane) & 1u;
+    }
+  }
+  return {k, kept};
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx2"))) std::pair<size_t, size_t> keepNotSurelyInsideInEightLanes(
+    const Float4 (&nx)[2], const Float4 (&ny)[2], const Float4 (&offset)[2],
+    std::vector<Eigen::Vector2f>& points) {
+  return keepNotSurelyInsideInLanes<8>(nx, ny, offset, points);
+}
+#endif
+
 }  // namespace
 
 // The extremes a lane's worth of points at a time (firstExtremes), the edges' test four edges
@@ -210,6 +266,27 @@ ExtremeOctagon::ExtremeOctagon(const std::vector<Eigen::Vector2f>& points, float
     nx_[half] = nx[half], ny_[half] = ny[half], offset_[half] = offset[half];
   }
   usable_ = true;
+}
+
+size_t ExtremeOctagon::keepNotSurelyInside(std::vector<Eigen::Vector2f>& points) const {
+  if (points.empty()) return 0;
+  std::pair<size_t, size_t> tested_kept;
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasAvx2()) {
+    tested_kept = keepNotSurelyInsideInEightLanes(nx_, ny_, offset_, points);
+  } else
+#endif
+  {
+    tested_kept = keepNotSurelyInsideInLanes<4>(nx_, ny_, offset_, points);
+  }
+  auto [k, kept] = tested_kept;
+  for (; k < points.size(); ++k) {
+    const Eigen::Vector2f p = points[k];
+    points[kept] = p;
+    kept += !surelyInside(p);
+  }
+  points.resize(kept);
+  return kept;
 }
 
 bool ExtremeOctagon::within(const std::vector<Eigen::Vector2f>& hull, float tolerance) const {

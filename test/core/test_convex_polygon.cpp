@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -140,6 +141,35 @@ TEST(ExtremeOctagon, CornersAreTheFirstPointsReachingTheExtremes) {
         ASSERT_EQ(octagon.surelyInside(probe), expected.surelyInside(probe))
             << "trial " << trial << ", probe " << probe.transpose();
       }
+    }
+  }
+}
+
+// keepNotSurelyInside keeps, in their order, the points that surelyInside does not call surely
+// inside: 0-40 points of a disc (whole lanes and a rest) with NaNs among them, against the
+// octagon of another draw. Run with and without TABLETOP_SHAPES_NO_AVX2.
+TEST(ExtremeOctagon, KeepsThePointsNotSurelyInsideInTheirOrder) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  auto draw = [&](int n) {
+    std::vector<Eigen::Vector2f> points;
+    for (int i = 0; i < n; ++i) {
+      points.emplace_back(coordinate(rng), coordinate(rng));
+      if (coordinate(rng) > 0.9f) points.back().x() = std::numeric_limits<float>::quiet_NaN();
+    }
+    return points;
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    const ExtremeOctagon octagon(draw(3 + trial % 20), 0.01f);
+    std::vector<Eigen::Vector2f> points = draw(trial % 41), expected;
+    for (const Eigen::Vector2f& p : points) {
+      if (!octagon.surelyInside(p)) expected.push_back(p);
+    }
+    EXPECT_EQ(octagon.keepNotSurelyInside(points), expected.size());
+    ASSERT_EQ(points.size(), expected.size()) << "trial " << trial;
+    for (size_t i = 0; i < points.size(); ++i) {
+      EXPECT_EQ(std::memcmp(points[i].data(), expected[i].data(), sizeof(float) * 2), 0)
+          << "trial " << trial << ", point " << i;
     }
   }
 }
