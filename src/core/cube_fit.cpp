@@ -576,12 +576,16 @@ struct VisibleBoxFaces {
   }
   float distance(const Eigen::Vector3f& point) const {
     const Eigen::Vector3f local = to_box * (point - box.center);
-    float distance = std::numeric_limits<float>::infinity();
+    const Eigen::Vector3f clamped = local.cwiseMax(-half).cwiseMin(half);
+    // The nearest face by its squared distance, one root: the roots are monotonic (correctly
+    // rounded), so the same distance as the least of the faces' norms.
+    float squared = std::numeric_limits<float>::infinity();
     for (int face = 0; face < count; ++face) {
-      Eigen::Vector3f nearest = local.cwiseMax(-half).cwiseMin(half);
+      Eigen::Vector3f nearest = clamped;
       nearest[faces[face].axis] = faces[face].side * half[faces[face].axis];
-      distance = std::min(distance, (local - nearest).norm());
+      squared = std::min(squared, (local - nearest).squaredNorm());
     }
+    const float distance = std::sqrt(squared);
     return std::isfinite(distance) ? distance : distanceToBox(box, point);
   }
 
