@@ -1,10 +1,17 @@
 #include "tabletop_shapes/core/convex_polygon.h"
 
+#include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/float4.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <utility>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace tabletop_shapes {
 
@@ -20,14 +27,7 @@ constexpr float kSurelyInside = 1e-5f;  // [m]
 // The hull is the same.
 void dropSurelyInside(std::vector<Eigen::Vector2f>& points) {
   if (points.size() < 16) return;
-  const ExtremeOctagon octagon(points, kSurelyInside);
-  size_t kept = 0;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector2f p = points[i];
-    points[kept] = p;
-    kept += !octagon.surelyInside(p);
-  }
-  points.resize(kept);
+  ExtremeOctagon(points, kSurelyInside).keepNotSurelyInside(points);
 }
 
 // Andrew's monotone chain over points without those surely inside.
@@ -54,34 +54,197 @@ std::vector<Eigen::Vector2f> monotoneChain(std::vector<Eigen::Vector2f> points) 
   return hull;
 }
 
+// Lanes of eight floats are passed only within AVX2 functions and always-inlined ones: GCC's note
+// that passing them without AVX changes the ABI does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+// The lanes of kLanes points: their types, and the bits of a comparison's lanes (bit i: lane i).
+template <int kLanes>
+struct LaneTypes;
+template <>
+struct LaneTypes<4> {
+  using Floats = Float4;
+  using Ints = Int4;
+  static unsigned bits(Int4 mask) { return lanesOf(mask); }
+};
+#if defined(__x86_64__) && defined(__GNUC__)
+template <>
+struct LaneTypes<8> {
+  using Floats = float __attribute__((vector_size(32)));
+  using Ints = int __attribute__((vector_size(32)));
+  __attribute__((target("avx2"))) static unsigned bits(Ints mask) {
+    return static_cast<unsigned>(_mm256_movemask_ps((__m256)mask));
+  }
+};
+#endif
+
+// x and y of points k .. k + kLanes - 1 of `xy` (x y pairs).
+template <int kLanes>
+[[gnu::always_inline]] inline void loadPoints(const float* xy, size_t k,
+                                              typename LaneTypes<kLanes>::Floats& x,
+                                              typename LaneTypes<kLanes>::Floats& y) {
+  typename LaneTypes<kLanes>::Floats first, second;
+  std::memcpy(&first, xy + 2 * k, sizeof first);
+  std::memcpy(&second, xy + 2 * k + kLanes, sizeof second);
+  if constexpr (kLanes == 4) {
+    x = __builtin_shufflevector(first, second, 0, 2, 4, 6);
+    y = __builtin_shufflevector(first, second, 1, 3, 5, 7);
+  } else {
+    x = __builtin_shufflevector(first, second, 0, 2, 4, 6, 8, 10, 12, 14);
+    y = __builtin_shufflevector(first, second, 1, 3, 5, 7, 9, 11, 13, 15);
+  }
+}
+
+// The first points reaching the highest and the lowest values along x, x + y, y and y - x, a
+// lane's worth of points at a time: each lane keeps its own (the first of its points reaching
+// them, the float operations of the plain loop: x + y, y - x), and the lanes are merged at the
+// end (the highest value, the lowest index among the lanes holding it), so the points of the
+// plain loop over all the points, whatever the width. Values never above -max (below max) and
+// NaNs reach nothing: with no point reaching a direction's extreme, its index is 0.
+template <int kLanes>
+struct FirstExtremes {
+  using Floats = typename LaneTypes<kLanes>::Floats;
+  using Ints = typename LaneTypes<kLanes>::Ints;
+  static constexpr float kMax = std::numeric_limits<float>::max();
+  Floats highest[4], lowest[4];
+  Ints at_highest[4] = {}, at_lowest[4] = {};
+
+  FirstExtremes() {
+    for (int d = 0; d < 4; ++d) highest[d] = Floats{} - kMax, lowest[d] = Floats{} + kMax;
+  }
+
+  [[gnu::always_inline]] void add(Floats x, Floats y, Ints index) {
+    const Floats along[4] = {x, x + y, y, y - x};
+#pragma GCC unroll 4
+    for (int d = 0; d < 4; ++d) {
+      const Ints higher = along[d] > highest[d], lower = along[d] < lowest[d];
+      highest[d] = higher ? along[d] : highest[d];
+      at_highest[d] = higher ? index : at_highest[d];
+      lowest[d] = lower ? along[d] : lowest[d];
+      at_lowest[d] = lower ? index : at_lowest[d];
+    }
+  }
+
+  // The points' x and y from `xy` (x y pairs), kLanes points at a time; the last lanes past
+  // `count` NaN.
+  [[gnu::always_inline]] void addAll(const float* xy, size_t count) {
+    Ints index;
+    for (int lane = 0; lane < kLanes; ++lane) index[lane] = lane;
+    size_t k = 0;
+    for (; k + kLanes <= count; k += kLanes, index += kLanes) {
+      Floats x, y;
+      loadPoints<kLanes>(xy, k, x, y);
+      add(x, y, index);
+    }
+    if (k < count) {
+      Floats x = Floats{} + std::numeric_limits<float>::quiet_NaN(), y = x;
+      for (size_t lane = 0; k + lane < count; ++lane) {
+        x[lane] = xy[2 * (k + lane)], y[lane] = xy[2 * (k + lane) + 1];
+      }
+      add(x, y, index);
+    }
+  }
+
+  void merge(int (&first_highest)[4], int (&first_lowest)[4]) const {
+    for (int d = 0; d < 4; ++d) {
+      float high = -kMax, low = kMax;
+      int at_high = 0, at_low = 0;
+      for (int lane = 0; lane < kLanes; ++lane) {
+        const float h = highest[d][lane], l = lowest[d][lane];
+        if (h > high || (h == high && at_highest[d][lane] < at_high)) {
+          high = h, at_high = at_highest[d][lane];
+        }
+        if (l < low || (l == low && at_lowest[d][lane] < at_low)) {
+          low = l, at_low = at_lowest[d][lane];
+        }
+      }
+      first_highest[d] = at_high, first_lowest[d] = at_low;
+    }
+  }
+};
+
+template <int kLanes>
+[[gnu::always_inline]] inline void firstExtremesInLanes(const std::vector<Eigen::Vector2f>& points,
+                                                        int (&at_highest)[4], int (&at_lowest)[4]) {
+  static_assert(sizeof(Eigen::Vector2f) == 2 * sizeof(float));
+  FirstExtremes<kLanes> extremes;
+  extremes.addAll(points.front().data(), points.size());
+  extremes.merge(at_highest, at_lowest);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Eight points at a time where the CPU has AVX2 (half the instructions of four).
+__attribute__((target("avx2"))) void firstExtremesInEightLanes(
+    const std::vector<Eigen::Vector2f>& points, int (&at_highest)[4], int (&at_lowest)[4]) {
+  firstExtremesInLanes<8>(points, at_highest, at_lowest);
+}
+#endif
+
+// FirstExtremes of the (not empty) points.
+void firstExtremes(const std::vector<Eigen::Vector2f>& points, int (&at_highest)[4],
+                   int (&at_lowest)[4]) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasAvx2()) return firstExtremesInEightLanes(points, at_highest, at_lowest);
+#endif
+  firstExtremesInLanes<4>(points, at_highest, at_lowest);
+}
+
+// ExtremeOctagon::keepNotSurelyInside on the points before the last whole lane's worth: each
+// lane tests its point against the eight edges (`nx`, `ny`, `offset`) with surelyInside's float
+// operations. The number of points tested (a multiple of kLanes) and of those kept.
+template <int kLanes>
+[[gnu::always_inline]] inline std::pair<size_t, size_t> keepNotSurelyInsideInLanes(
+    const Float4 (&nx)[2], const Float4 (&ny)[2], const Float4 (&offset)[2],
+    std::vector<Eigen::Vector2f>& points) {
+  using Floats = typename LaneTypes<kLanes>::Floats;
+  using Ints = typename LaneTypes<kLanes>::Ints;
+  Floats edge_nx[8], edge_ny[8], edge_offset[8];
+  for (int edge = 0; edge < 8; ++edge) {
+    edge_nx[edge] = Floats{} + nx[edge / 4][edge % 4];
+    edge_ny[edge] = Floats{} + ny[edge / 4][edge % 4];
+    edge_offset[edge] = Floats{} + offset[edge / 4][edge % 4];
+  }
+  const float* xy = points.front().data();
+  size_t k = 0, kept = 0;
+  for (; k + kLanes <= points.size(); k += kLanes) {
+    Floats x, y;
+    loadPoints<kLanes>(xy, k, x, y);
+    Ints outside = {};
+#pragma GCC unroll 8
+    for (int edge = 0; edge < 8; ++edge) {
+      outside |= edge_nx[edge] * x + edge_ny[edge] * y <= edge_offset[edge];
+    }
+    const unsigned kept_lanes = LaneTypes<kLanes>::bits(outside);
+    for (int lane = 0; lane < kLanes; ++lane) {
+      const Eigen::Vector2f p = points[k + lane];  // read before any write at or past it
+      points[kept] = p;
+      kept += (kept_lanes >> lane) & 1u;
+    }
+  }
+  return {k, kept};
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx2"))) std::pair<size_t, size_t> keepNotSurelyInsideInEightLanes(
+    const Float4 (&nx)[2], const Float4 (&ny)[2], const Float4 (&offset)[2],
+    std::vector<Eigen::Vector2f>& points) {
+  return keepNotSurelyInsideInLanes<8>(nx, ny, offset, points);
+}
+#endif
+
 }  // namespace
 
-// Both passes over the points run four lanes at a time (the four directions x, x + y, y, y - x,
-// their maxima and minima; then four edges per test), with each lane's float operations those
-// of the plain loops: the same extremes (the first point reaching each) and the same points kept.
+// The extremes a lane's worth of points at a time (firstExtremes), the edges' test four edges
+// at a time, with each lane's float operations those of the plain loops: the same extremes (the
+// first point reaching each) and the same points kept.
 ExtremeOctagon::ExtremeOctagon(const std::vector<Eigen::Vector2f>& points, float margin) {
   const float infinity = std::numeric_limits<float>::infinity();
   // Until the edges are known: 0 . p <= infinity, every point outside.
   nx_[0] = nx_[1] = ny_[0] = ny_[1] = Float4{};
   offset_[0] = offset_[1] = broadcast(infinity);
   if (points.empty()) return;
-  // The last four directions are the negated first four ((-x) - y is -(x + y) to the bit), so
-  // their maxima are the minima.
-  auto alongOf = [](const Eigen::Vector2f& p) {
-    return Float4{p.x(), p.x() + p.y(), p.y(), p.y() - p.x()};
-  };
-  Float4 highest = broadcast(-std::numeric_limits<float>::max());
-  Float4 lowest = broadcast(std::numeric_limits<float>::max());
-  Int4 at_highest = {0, 0, 0, 0}, at_lowest = at_highest;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Float4 along = alongOf(points[i]);
-    const Int4 index = Int4{} + static_cast<int>(i);
-    const Int4 higher = along > highest, lower = along < lowest;
-    highest = higher ? along : highest;
-    at_highest = higher ? index : at_highest;
-    lowest = lower ? along : lowest;
-    at_lowest = lower ? index : at_lowest;
-  }
+  int at_highest[4], at_lowest[4];
+  firstExtremes(points, at_highest, at_lowest);
   for (int d = 0; d < 4; ++d) {
     corners_[d] = points[at_highest[d]];
     corners_[d + 4] = points[at_lowest[d]];
@@ -103,6 +266,27 @@ ExtremeOctagon::ExtremeOctagon(const std::vector<Eigen::Vector2f>& points, float
     nx_[half] = nx[half], ny_[half] = ny[half], offset_[half] = offset[half];
   }
   usable_ = true;
+}
+
+size_t ExtremeOctagon::keepNotSurelyInside(std::vector<Eigen::Vector2f>& points) const {
+  if (points.empty()) return 0;
+  std::pair<size_t, size_t> tested_kept;
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasAvx2()) {
+    tested_kept = keepNotSurelyInsideInEightLanes(nx_, ny_, offset_, points);
+  } else
+#endif
+  {
+    tested_kept = keepNotSurelyInsideInLanes<4>(nx_, ny_, offset_, points);
+  }
+  auto [k, kept] = tested_kept;
+  for (; k < points.size(); ++k) {
+    const Eigen::Vector2f p = points[k];
+    points[kept] = p;
+    kept += !surelyInside(p);
+  }
+  points.resize(kept);
+  return kept;
 }
 
 bool ExtremeOctagon::within(const std::vector<Eigen::Vector2f>& hull, float tolerance) const {

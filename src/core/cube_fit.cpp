@@ -6,8 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <random>
 
@@ -86,15 +88,24 @@ bool refineFace(const NormalCloud& cloud, PlaneSupport& all, const CubeParams& p
   // Inliers (§3.2): distance below the threshold AND point normal within the angular threshold
   // of the plane normal (either sign: RANSAC planes are unoriented).
   const float cos_threshold = std::cos(params.angle_threshold);
-  for (int iteration = 0; iteration < kRefineIterations; ++iteration) {
+  // A refit that returns the plane it started from, to the bit, settles it: every later round
+  // would collect the same support and return the same plane again, and the support already
+  // collected is the final one.
+  bool settled = false;
+  for (int iteration = 0; iteration < kRefineIterations && !settled; ++iteration) {
     face.support.clear();
     all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
                 nullptr);
+    const float before[4] = {face.normal.x(), face.normal.y(), face.normal.z(), face.d};
     if (!fitPlane(cloud, face.support, face.normal, face.d)) return false;
+    const float after[4] = {face.normal.x(), face.normal.y(), face.normal.z(), face.d};
+    settled = std::memcmp(before, after, sizeof before) == 0;
   }
-  face.support.clear();
-  all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
-              nullptr);
+  if (!settled) {
+    face.support.clear();
+    all.collect(face.normal, face.d, params.distance_threshold, cos_threshold, &face.support,
+                nullptr);
+  }
   float agreement = 0.0f;
   for (int i : face.support) agreement += face.normal.dot(cloud[i].getNormalVector3fMap());
   if (agreement < 0.0f) {
@@ -343,7 +354,11 @@ ShapeFit fitCube(const NormalCloud& object, const Plane& table, const CubeParams
 
   // ---- pop planes by mean angular distance; keep distinct, mutually perpendicular ones ----
   std::vector<Face> faces;
-  PlaneSupport all_points(object, all);
+  // With at most kScoringPoints the scoring points are all the points, in their order: their
+  // PlaneSupport serves (each collect writes all the state it reads).
+  std::optional<PlaneSupport> all_points_of_their_own;
+  if (scoring.size() < all.size()) all_points_of_their_own.emplace(object, all);
+  PlaneSupport& all_points = all_points_of_their_own ? *all_points_of_their_own : scoring_points;
   const int max_planes = std::clamp(params.max_planes, 1, 3);
   while (!queue.empty() && static_cast<int>(faces.size()) < max_planes) {
     Candidate candidate = queue.top();
@@ -561,12 +576,16 @@ struct VisibleBoxFaces {
   }
   float distance(const Eigen::Vector3f& point) const {
     const Eigen::Vector3f local = to_box * (point - box.center);
-    float distance = std::numeric_limits<float>::infinity();
+    const Eigen::Vector3f clamped = local.cwiseMax(-half).cwiseMin(half);
+    // The nearest face by its squared distance, one root: the roots are monotonic (correctly
+    // rounded), so the same distance as the least of the faces' norms.
+    float squared = std::numeric_limits<float>::infinity();
     for (int face = 0; face < count; ++face) {
-      Eigen::Vector3f nearest = local.cwiseMax(-half).cwiseMin(half);
+      Eigen::Vector3f nearest = clamped;
       nearest[faces[face].axis] = faces[face].side * half[faces[face].axis];
-      distance = std::min(distance, (local - nearest).norm());
+      squared = std::min(squared, (local - nearest).squaredNorm());
     }
+    const float distance = std::sqrt(squared);
     return std::isfinite(distance) ? distance : distanceToBox(box, point);
   }
 

@@ -109,11 +109,12 @@ template <int kCount, typename Lanes>
 }
 
 // exp of each lane (Cephes' expf: exp(x) = 2^k exp(f), k = round(x / ln 2), |f| <= ln 2 / 2,
-// exp(f) by a polynomial of degree 7), x clamped to [-87, 88]: within 1 float ulp of exp on
-// MLS's weights' range (measured on every float of [-5, 0] and on [-87, -5] in steps of 1e-4).
+// exp(f) by a polynomial of degree 7) for x in [-87, 88], where Cephes clamps it (a NaN stays
+// NaN): within 1 float ulp of exp on MLS's weights' range (measured on every float of [-5, 0]
+// and on [-87, -5] in steps of 1e-4). MLS's exponents -d^2 / r^2 lie in [-4, 0] (a neighbour
+// and the frame's origin each within the radius of the query point), so the clamp, two
+// comparisons and two blends per lane's worth, is left out.
 [[gnu::always_inline]] inline FloatLanes expLanes(FloatLanes x) {
-  x = x < -87.0f ? FloatLanes{} - 87.0f : x;
-  x = x > 88.0f ? FloatLanes{} + 88.0f : x;
   constexpr float kRound = 12582912.0f;  // 1.5 * 2^23: adding it rounds to an integer
   const FloatLanes k = (x * 1.44269504088896341f + kRound) - kRound;
   const FloatLanes f = (x - k * 0.693359375f) - k * -2.12194440e-4f;
@@ -177,24 +178,13 @@ size_t gatherEightAtATime(const Cloud& cloud, const pcl::Indices& indices, float
 // A neighbourhood as the passes of fitLocalSurface read it, one array per quantity, padded to
 // a multiple of kMostLanes so that each pass runs on whole lanes: first the neighbours'
 // coordinates as the cloud holds them (their offsets from the query point are taken in the
-// passes), then their place in the Darboux frame, in floats or in doubles after the
-// polynomial's order. The padding neighbours sit at the query point and weigh 0, so they add
-// exact zeros to every sum.
+// passes), then, for a polynomial fitted in doubles, their place in the Darboux frame. The
+// padding neighbours sit at the query point and weigh 0, so they add exact zeros to every sum.
 struct Neighbourhood {
   std::vector<float> px, py, pz;
-  FrameCoordinates<float> frame_in_floats;
-  FrameCoordinates<double> frame_in_doubles;
+  FrameCoordinates<double> frame_in_doubles;  // for orders 3 and 4
   Eigen::Vector3f query;
   size_t count = 0, padded = 0;
-
-  template <typename Real>
-  FrameCoordinates<Real>& frame() {
-    if constexpr (std::is_same_v<Real, float>) {
-      return frame_in_floats;
-    } else {
-      return frame_in_doubles;
-    }
-  }
 
   void gather(const Cloud& cloud, const pcl::Indices& indices, const Point& query_point) {
     count = indices.size();
@@ -293,39 +283,44 @@ struct Polynomial {
   }();
 };
 
-// The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
-// r^2)) in `coefficients`: its normal equations from the moments, summed over a lane's worth
-// of neighbours at a time (one per lane) with the order fixed at compile time so that the
-// loops unroll. False when the normal equations are not positive definite (neighbours on a
-// line in (u, v)).
-template <int kOrder, typename Real>
-[[gnu::always_inline]] inline bool fitPolynomial(const FrameCoordinates<Real>& frame, size_t padded,
-                                                 double* coefficients) {
-  using Poly = Polynomial<kOrder>;
-  using Lanes = LanesOf<Real>;
-  constexpr int kTerms = Poly::kTerms, kDegree = Poly::kDegree;
-  Lanes moments[Poly::kMoments] = {};
-  Lanes right[kTerms] = {};
-  for (size_t k = 0; k < padded; k += kLanesOf<Real>) {
-    const Lanes u = loadLanes(&frame.u[k]), v = loadLanes(&frame.v[k]);
-    const Lanes height = loadLanes(&frame.height[k]);
-    Lanes row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
-    row[0] = loadLanes(&frame.weight[k]);
+// One lane's worth of neighbours (one per lane) added to the moments of the weights
+// sum(w u^i v^j), i + j <= 2 kOrder, and to the right-hand sums sum(w u^i v^j height),
+// i + j <= kOrder, both in Polynomial<kOrder>'s order: each product w v^j u^i made of the
+// weight times v j times, then u i times. Always inlined with the sums in the caller's locals,
+// so that they stay in registers where they fit.
+template <int kOrder, typename Lanes>
+[[gnu::always_inline]] inline void addMoments(Lanes u, Lanes v, Lanes height, Lanes weight,
+                                              Lanes (&moments)[Polynomial<kOrder>::kMoments],
+                                              Lanes (&right)[Polynomial<kOrder>::kTerms]) {
+  constexpr int kDegree = Polynomial<kOrder>::kDegree;
+  Lanes row[kDegree + 1];  // w u^i v^j for j = 0 .. kDegree - i, i rising pass by pass
+  row[0] = weight;
 #pragma GCC unroll 8
-    for (int j = 1; j <= kDegree; ++j) row[j] = row[j - 1] * v;
-    int moment = 0, term = 0;
+  for (int j = 1; j <= kDegree; ++j) row[j] = row[j - 1] * v;
+  int moment = 0, term = 0;
 #pragma GCC unroll 9
-    for (int i = 0; i <= kDegree; ++i) {
+  for (int i = 0; i <= kDegree; ++i) {
 #pragma GCC unroll 9
-      for (int j = 0; j <= kDegree - i; ++j) moments[moment++] += row[j];
-      if (i <= kOrder) {
+    for (int j = 0; j <= kDegree - i; ++j) moments[moment++] += row[j];
+    if (i <= kOrder) {
 #pragma GCC unroll 5
-        for (int j = 0; j <= kOrder - i; ++j) right[term++] += row[j] * height;
-      }
-#pragma GCC unroll 8
-      for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
+      for (int j = 0; j <= kOrder - i; ++j) right[term++] += row[j] * height;
     }
+#pragma GCC unroll 8
+    for (int j = 0; j < kDegree - i; ++j) row[j] *= u;
   }
+}
+
+// The weighted least-squares polynomial of the heights over (u, v) (PCL's weight exp(-d^2 /
+// r^2)) in `coefficients`, from the lanes of addMoments' sums: its normal equations, with the
+// order fixed at compile time so that the loops unroll. False when the normal equations are not
+// positive definite (neighbours on a line in (u, v)).
+template <int kOrder, typename Lanes>
+[[gnu::always_inline]] inline bool solvePolynomial(
+    const Lanes (&moments)[Polynomial<kOrder>::kMoments],
+    const Lanes (&right)[Polynomial<kOrder>::kTerms], double* coefficients) {
+  using Poly = Polynomial<kOrder>;
+  constexpr int kTerms = Poly::kTerms;
   double moment_sums[Poly::kMoments], right_sums[kTerms];
   sumsOfLanes(moments, moment_sums);
   sumsOfLanes(right, right_sums);
@@ -379,43 +374,96 @@ struct DarbouxFrame {
   Eigen::Vector3d origin, u_axis, v_axis, normal;
 };
 
+// Neighbours k .. k + kLanesOf<Real> - 1 of a Neighbourhood in a Darboux frame, in Real lanes: u,
+// v and height in units of the search radius, and the exponent -d^2 / r^2 of their weights.
+template <typename Real>
+struct FrameLanes {
+  LanesOf<Real> u, v, height, exponent;
+};
+
+template <typename Real>
+struct InFrame {
+  using Lanes = LanesOf<Real>;
+  using Vector = Eigen::Matrix<Real, 3, 1>;
+  InFrame(const Neighbourhood& near, const DarbouxFrame& darboux, double search_radius)
+      : xs(near.px.data()),
+        ys(near.py.data()),
+        zs(near.pz.data()),
+        query_x(near.query[0]),
+        query_y(near.query[1]),
+        query_z(near.query[2]),
+        inverse_radius(static_cast<Real>(1.0 / search_radius)),
+        at(darboux.origin.cast<Real>()),
+        u_along(darboux.u_axis.cast<Real>()),
+        v_along(darboux.v_axis.cast<Real>()),
+        up(darboux.normal.cast<Real>()) {}
+
+  [[gnu::always_inline]] FrameLanes<Real> lanes(size_t k) const {
+    const Lanes x = (offsetLanes<Real>(xs, k, query_x) - at[0]) * inverse_radius;
+    const Lanes y = (offsetLanes<Real>(ys, k, query_y) - at[1]) * inverse_radius;
+    const Lanes z = (offsetLanes<Real>(zs, k, query_z) - at[2]) * inverse_radius;
+    return {x * u_along[0] + y * u_along[1] + z * u_along[2],
+            x * v_along[0] + y * v_along[1] + z * v_along[2], x * up[0] + y * up[1] + z * up[2],
+            -(x * x + y * y + z * z)};
+  }
+
+  // The arrays and the query point in members of their own: read through the Neighbourhood they
+  // were loaded again in each turn (the stores may alias anything).
+  const float *xs, *ys, *zs;
+  const float query_x, query_y, query_z;
+  const Real inverse_radius;
+  const Vector at, u_along, v_along, up;
+};
+
 // The neighbours' coordinates in `darboux` in units of the radius and their weights, then the
-// polynomial of order kOrder fitted over them, in Real lanes.
+// polynomial of order kOrder fitted over them, in Real lanes. In floats (order 2) in one pass,
+// each lane's weight from expLanes; in doubles the coordinates are stored first, for
+// expInPlace's weights.
 template <int kOrder, typename Real>
 [[gnu::always_inline]] inline bool fitPolynomialInFrame(Neighbourhood& near,
                                                         const DarbouxFrame& darboux,
                                                         double search_radius,
                                                         double* coefficients) {
   using Lanes = LanesOf<Real>;
-  using Vector = Eigen::Matrix<Real, 3, 1>;
-  const Real inverse_radius = static_cast<Real>(1.0 / search_radius);
-  const Vector at = darboux.origin.cast<Real>(), u_along = darboux.u_axis.cast<Real>(),
-               v_along = darboux.v_axis.cast<Real>(), up = darboux.normal.cast<Real>();
-  FrameCoordinates<Real>& frame = near.frame<Real>();
-  if (frame.u.size() < near.padded) frame.resize(near.padded);  // grown only
-  // The arrays in locals: the stores (memcpy) may alias anything, the vectors' members included.
-  // (The query point too: read through `near` it was loaded again in each turn.)
-  const float *xs = near.px.data(), *ys = near.py.data(), *zs = near.pz.data();
-  const float query_x = near.query[0], query_y = near.query[1], query_z = near.query[2];
-  Real *weights = frame.weight.data(), *us = frame.u.data(), *vs = frame.v.data(),
-       *heights = frame.height.data();
-  for (size_t k = 0, padded = near.padded; k < padded; k += kLanesOf<Real>) {
-    const Lanes x = (offsetLanes<Real>(xs, k, query_x) - at[0]) * inverse_radius;
-    const Lanes y = (offsetLanes<Real>(ys, k, query_y) - at[1]) * inverse_radius;
-    const Lanes z = (offsetLanes<Real>(zs, k, query_z) - at[2]) * inverse_radius;
-    const Lanes exponent = -(x * x + y * y + z * z);  // -d^2 / r^2
-    if constexpr (std::is_same_v<Real, float>) {
-      storeLanes(weights + k, expLanes(exponent));
-    } else {
-      storeLanes(weights + k, exponent);
+  using Poly = Polynomial<kOrder>;
+  constexpr size_t kLanes = kLanesOf<Real>;
+  const InFrame<Real> in_frame(near, darboux, search_radius);
+  Lanes moments[Poly::kMoments] = {};
+  Lanes right[Poly::kTerms] = {};
+  if constexpr (std::is_same_v<Real, float>) {
+    // The padding neighbours weigh 0 (all bits clear), in the last lanes only.
+    const size_t count = near.count, whole = count / kLanes * kLanes;
+    auto add = [&](size_t k, bool padded) __attribute__((always_inline)) {
+      const FrameLanes<float> frame = in_frame.lanes(k);
+      FloatLanes weight = expLanes(frame.exponent);
+      if (padded) {
+        const IntLanes lane = {0, 1, 2, 3, 4, 5, 6, 7};
+        weight = (FloatLanes)((IntLanes)weight & (lane < static_cast<int>(count - k)));
+      }
+      addMoments<kOrder>(frame.u, frame.v, frame.height, weight, moments, right);
+    };
+    for (size_t k = 0; k < whole; k += kLanes) add(k, false);
+    if (whole < near.padded) add(whole, true);
+  } else {
+    FrameCoordinates<Real>& frame = near.frame_in_doubles;
+    if (frame.u.size() < near.padded) frame.resize(near.padded);  // grown only
+    Real *weights = frame.weight.data(), *us = frame.u.data(), *vs = frame.v.data(),
+         *heights = frame.height.data();
+    for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
+      const FrameLanes<Real> lanes = in_frame.lanes(k);
+      storeLanes(weights + k, lanes.exponent);
+      storeLanes(us + k, lanes.u);
+      storeLanes(vs + k, lanes.v);
+      storeLanes(heights + k, lanes.height);
     }
-    storeLanes(us + k, x * u_along[0] + y * u_along[1] + z * u_along[2]);
-    storeLanes(vs + k, x * v_along[0] + y * v_along[1] + z * v_along[2]);
-    storeLanes(heights + k, x * up[0] + y * up[1] + z * up[2]);
+    expInPlace(weights, near.padded);
+    for (size_t k = near.count; k < near.padded; ++k) weights[k] = 0;
+    for (size_t k = 0, padded = near.padded; k < padded; k += kLanes) {
+      addMoments<kOrder>(loadLanes(us + k), loadLanes(vs + k), loadLanes(heights + k),
+                         loadLanes(weights + k), moments, right);
+    }
   }
-  if constexpr (!std::is_same_v<Real, float>) expInPlace(weights, near.padded);
-  for (size_t k = near.count; k < near.padded; ++k) weights[k] = 0;
-  return fitPolynomial<kOrder>(frame, near.padded, coefficients);
+  return solvePolynomial<kOrder>(moments, right, coefficients);
 }
 
 // The smallest eigenvalue of the symmetric positive semi-definite `scatter` and its unit

@@ -106,44 +106,72 @@ struct PointBlocks {
   int count;
 };
 
+// Lanes of eight floats are passed only within AVX2 functions and always-inlined ones: GCC's note
+// that passing them without AVX changes the ABI does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+// The lane operations pointsOnCircleAboveInLanes takes from its width: the lane types, the
+// square root (correctly rounded, as std::sqrt) and the number of lanes a comparison sets.
+struct FourLanes {
+  using Floats = Float4;
+  using Ints = Int4;
+  static Float4 root(Float4 value) { return squareRoot(value); }
+  static int countSet(Int4 mask) {
+    static constexpr int kLanesSet[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+    return kLanesSet[lanesOf(mask)];
+  }
+};
+
 // pointsOnCircle when it exceeds `least`, else a count of at most `least`: the search keeps
 // only circles better than the best so far, so the count stops once the points left cannot take
-// it beyond. Each lane does onCircle's float operations ((p - c).norm(): dx dx + dy dy).
-int pointsOnCircleAbove(const PointBlocks& points, const Circle& circle, int least) {
-  static constexpr int kLanesSet[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
-  const Float4 cx = broadcast(circle.center.x()), cy = broadcast(circle.center.y());
-  const Float4 radius = broadcast(circle.radius), band = broadcast(kOutlineBand);
-  int on = 0, left = points.count;
-  for (size_t k = 0; k < points.x.size() && on + left > least; ++k, left -= 4) {
-    const Float4 dx = points.x[k] - cx, dy = points.y[k] - cy;
-    on += kLanesSet[lanesOf(magnitude(squareRoot(dx * dx + dy * dy) - radius) <= band)];
-  }
-  return on;
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// pointsOnCircleAbove eight points at a time, the same float operations per lane: the same count
-// where it exceeds `least` (it stops only with at most `least` on the circle: on + left <= least).
-__attribute__((target("avx2,popcnt"))) int pointsOnCircleAboveInEightLanes(
-    const PointBlocks& points, const Circle& circle, int least) {
-  using Float8 = float __attribute__((vector_size(32)));
-  using Int8 = int __attribute__((vector_size(32)));
-  const Float8 cx = Float8{} + circle.center.x(), cy = Float8{} + circle.center.y();
-  const Float8 radius = Float8{} + circle.radius, band = Float8{} + kOutlineBand;
+// it beyond (checked a lane's worth of points at a time: where it stops, the count depends on
+// the width). Each lane does onCircle's float operations ((p - c).norm(): dx dx + dy dy), so
+// every width gives the same count where it exceeds `least`.
+template <typename Lanes>
+[[gnu::always_inline]] inline int pointsOnCircleAboveInLanes(const PointBlocks& points,
+                                                             const Circle& circle, int least) {
+  using Floats = typename Lanes::Floats;
+  using Ints = typename Lanes::Ints;
+  constexpr int kLanes = sizeof(Floats) / sizeof(float);
+  const Floats cx = Floats{} + circle.center.x(), cy = Floats{} + circle.center.y();
+  const Floats radius = Floats{} + circle.radius, band = Floats{} + kOutlineBand;
   const float* xs = reinterpret_cast<const float*>(points.x.data());
   const float* ys = reinterpret_cast<const float*>(points.y.data());
   const size_t floats = 4 * points.x.size();
   int on = 0, left = points.count;
-  for (size_t k = 0; k < floats && on + left > least; k += 8, left -= 8) {
-    Float8 x, y;
+  for (size_t k = 0; k < floats && on + left > least; k += kLanes, left -= kLanes) {
+    Floats x, y;
     std::memcpy(&x, xs + k, sizeof x);
     std::memcpy(&y, ys + k, sizeof y);
-    const Float8 dx = x - cx, dy = y - cy;
-    const Float8 off = (Float8)_mm256_sqrt_ps((__m256)(dx * dx + dy * dy)) - radius;
-    const Int8 within = (Float8)((Int8)off & 0x7fffffff) <= band;
-    on += __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps((__m256)within)));
+    const Floats dx = x - cx, dy = y - cy;
+    const Floats off = Lanes::root(dx * dx + dy * dy) - radius;
+    on += Lanes::countSet((Floats)((Ints)off & 0x7fffffff) <= band);
   }
   return on;
+}
+
+// Out of line, as the eight-lane one: inlined, it cost the circle search's loop registers.
+[[gnu::noinline]] int pointsOnCircleAbove(const PointBlocks& points, const Circle& circle,
+                                          int least) {
+  return pointsOnCircleAboveInLanes<FourLanes>(points, circle, least);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+struct EightLanes {
+  using Floats = float __attribute__((vector_size(32)));
+  using Ints = int __attribute__((vector_size(32)));
+  __attribute__((target("avx2"))) static Floats root(Floats value) {
+    return (Floats)_mm256_sqrt_ps((__m256)value);
+  }
+  __attribute__((target("avx2,popcnt"))) static int countSet(Ints mask) {
+    return __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps((__m256)mask)));
+  }
+};
+
+// pointsOnCircleAbove eight points at a time where the CPU has AVX2.
+__attribute__((target("avx2,popcnt"))) int pointsOnCircleAboveInEightLanes(
+    const PointBlocks& points, const Circle& circle, int least) {
+  return pointsOnCircleAboveInLanes<EightLanes>(points, circle, least);
 }
 #else
 // Without AVX2 (cpuHasAvx2() false): never called.

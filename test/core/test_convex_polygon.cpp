@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <random>
 
 using namespace tabletop_shapes;
@@ -96,6 +99,79 @@ TEST(ExtremeOctagon, SurelyInsideBeyondTheMarginAndWithinHullsHoldingIt) {
   EXPECT_TRUE(degenerate.within(hull, 0.0f));
   const ExtremeOctagon none({}, margin);
   EXPECT_FALSE(none.surelyInside({1.0f, 0.0f}));
+}
+
+// The octagon's corners are the first points reaching the extremes along x, x + y, y, y - x
+// (and the opposite directions), found a lane's worth of points at a time: on points of a coarse
+// grid (many ties) with NaNs among them, 1-40 of them (whole lanes and a rest), the octagon of
+// all the points tests every probe as the octagon of the corners a plain loop finds, given in
+// the points' order (so that each is still the first reaching its extreme). Run with and
+// without TABLETOP_SHAPES_NO_AVX2.
+TEST(ExtremeOctagon, CornersAreTheFirstPointsReachingTheExtremes) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> cell(-3, 3);
+  const float margin = 1e-3f, nan = std::numeric_limits<float>::quiet_NaN();
+  for (int trial = 0; trial < 300; ++trial) {
+    const int n = 1 + trial % 40;
+    std::vector<Eigen::Vector2f> points;
+    for (int i = 0; i < n; ++i) {
+      points.emplace_back(0.1f * cell(rng), 0.1f * cell(rng));
+      if (cell(rng) == 3) points.back()[cell(rng) > 0 ? 0 : 1] = nan;
+    }
+    std::vector<int> first;  // the plain loop's corners, by index
+    const float max = std::numeric_limits<float>::max();
+    for (int d = 0; d < 8; ++d) {
+      float best = d < 4 ? -max : max;
+      int at = 0;
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector2f& p = points[i];
+        const float along[4] = {p.x(), p.x() + p.y(), p.y(), p.y() - p.x()};
+        if (d < 4 ? along[d] > best : along[d - 4] < best) best = along[d % 4], at = i;
+      }
+      first.push_back(at);
+    }
+    std::sort(first.begin(), first.end());
+    first.erase(std::unique(first.begin(), first.end()), first.end());
+    std::vector<Eigen::Vector2f> corners;
+    for (int i : first) corners.push_back(points[i]);
+    const ExtremeOctagon octagon(points, margin), expected(corners, margin);
+    for (int i = -40; i <= 40; ++i) {
+      for (int j = -40; j <= 40; ++j) {
+        const Eigen::Vector2f probe(0.01f * i, 0.01f * j);
+        ASSERT_EQ(octagon.surelyInside(probe), expected.surelyInside(probe))
+            << "trial " << trial << ", probe " << probe.transpose();
+      }
+    }
+  }
+}
+
+// keepNotSurelyInside keeps, in their order, the points that surelyInside does not call surely
+// inside: 0-40 points of a disc (whole lanes and a rest) with NaNs among them, against the
+// octagon of another draw. Run with and without TABLETOP_SHAPES_NO_AVX2.
+TEST(ExtremeOctagon, KeepsThePointsNotSurelyInsideInTheirOrder) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  auto draw = [&](int n) {
+    std::vector<Eigen::Vector2f> points;
+    for (int i = 0; i < n; ++i) {
+      points.emplace_back(coordinate(rng), coordinate(rng));
+      if (coordinate(rng) > 0.9f) points.back().x() = std::numeric_limits<float>::quiet_NaN();
+    }
+    return points;
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    const ExtremeOctagon octagon(draw(3 + trial % 20), 0.01f);
+    std::vector<Eigen::Vector2f> points = draw(trial % 41), expected;
+    for (const Eigen::Vector2f& p : points) {
+      if (!octagon.surelyInside(p)) expected.push_back(p);
+    }
+    EXPECT_EQ(octagon.keepNotSurelyInside(points), expected.size());
+    ASSERT_EQ(points.size(), expected.size()) << "trial " << trial;
+    for (size_t i = 0; i < points.size(); ++i) {
+      EXPECT_EQ(std::memcmp(points[i].data(), expected[i].data(), sizeof(float) * 2), 0)
+          << "trial " << trial << ", point " << i;
+    }
+  }
 }
 
 TEST(PolygonEdges, SameDistancesAsInsideDistanceAndInsideByItsThreshold) {

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <random>
@@ -543,6 +544,51 @@ TEST(RoundObject, StraightConeNarrowingUpwardsIsStillACone) {
 }
 
 // ---- bad input ----
+
+// The visible surface of an upright cylinder (r 0.1 m, 0.2 m tall, axis along z, the camera at
+// the origin 1 m away at mid-height): the wall within acos(r / 1 m) of the camera's azimuth
+// (84.3 degrees) faces it; a point beyond is as far as the nearer silhouette generatrix. Points
+// 1 cm out of the wall all round (every half degree, and each silhouette's azimuth and 1e-9 rad
+// either side of it), and on the axis (no azimuth: the negative side's generatrix, r away).
+TEST(VisibleRoundSurface, TheWallFacingTheCameraAndTheNearerSilhouetteBeyond) {
+  ShapeFit round;
+  round.type = ShapeType::Cylinder;
+  round.center = Eigen::Vector3f(1.0f, 0.0f, 0.0f);
+  round.radius = 0.1f;
+  round.height = 0.2f;
+  const double camera_azimuth = kPi, half_angle = std::acos(0.1);
+  std::vector<double> azimuths;
+  for (int step = 0; step < 720; ++step) azimuths.push_back(degToRad(0.5 * step));
+  for (double side : {-1.0, 1.0}) {
+    for (double off : {-1e-9, 0.0, 1e-9}) {
+      azimuths.push_back(camera_azimuth + side * half_angle + off);
+    }
+  }
+  for (double azimuth : azimuths) {
+    const double rho = 0.11;
+    const Eigen::Vector3f point =
+        round.center +
+        Eigen::Vector3d(rho * std::cos(azimuth), rho * std::sin(azimuth), 0.0).cast<float>();
+    const double offset = std::remainder(azimuth - camera_azimuth, 2.0 * kPi);
+    double expected = 0.01;
+    if (std::abs(offset) > half_angle + 1e-6) {
+      const double silhouette = camera_azimuth + std::copysign(half_angle, offset);
+      expected = (Eigen::Vector2d(rho * std::cos(azimuth), rho * std::sin(azimuth)) -
+                  0.1 * Eigen::Vector2d(std::cos(silhouette), std::sin(silhouette)))
+                     .norm();
+    } else if (std::abs(offset) > half_angle - 1e-6) {
+      expected = std::numeric_limits<double>::quiet_NaN();  // either: within 1e-7 of 0.01
+    }
+    const float distance = distanceToVisibleRoundSurface(round, point);
+    if (std::isnan(expected)) {
+      EXPECT_NEAR(distance, 0.01, 1e-5) << "azimuth " << azimuth;
+    } else {
+      EXPECT_NEAR(distance, expected, 1e-5) << "azimuth " << azimuth;
+    }
+  }
+  // On the axis: atan2(0, 0) - pi, offset -pi, the generatrix at pi - 84.3 degrees, r away.
+  EXPECT_NEAR(distanceToVisibleRoundSurface(round, round.center), 0.1, 1e-6);
+}
 
 TEST(CylinderFit, BadInputFailsWithAReason) {
   const Plane table = synthetic::tablePlane();

@@ -26,6 +26,9 @@ class ExtremeOctagon {
     return lanesOf((nx_[0] * x + ny_[0] * y <= offset_[0]) |
                    (nx_[1] * x + ny_[1] * y <= offset_[1])) == 0u;
   }
+  // Keeps the points not surelyInside, in their order, at the front of `points` (resized to
+  // them); their number. Several points at a time: the points surelyInside keeps, one by one.
+  size_t keepNotSurelyInside(std::vector<Eigen::Vector2f>& points) const;
   // True when no corner lies farther than `tolerance` outside the counter-clockwise convex
   // `hull`: with a tolerance below the margin, the points surely inside the octagon lie in it.
   bool within(const std::vector<Eigen::Vector2f>& hull, float tolerance) const;
