@@ -102,7 +102,8 @@ void Preprocessor::VoxelTable::grow() {
 }
 
 // Inline: the voxel sum's inner loop calls it (out of line, a shared library's call goes
-// through the PLT); a new voxel's insert is out of line.
+// through the PLT). Half the kept pixels of a VGA frame start a new voxel: its insert is inline
+// too, but for the table's growth.
 inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) {
   // At most half full.
   const size_t mask = slots_.size() - 1;
@@ -111,7 +112,15 @@ inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) 
     if (slots_[slot].key == key) return slots_[slot].voxel;
     slot = (slot + 1) & mask;
   }
-  return insert(key, pixel, slot);
+  if (2 * (sums.size() + 1) > slots_.size()) return insertGrowing(key, pixel);
+  const uint32_t voxel = static_cast<uint32_t>(sums.size());
+  slots_[slot] = {key, voxel, frame_};
+  // Written in place, field by field: a VoxelSum built on the stack and copied in was read back
+  // across its narrower stores, a failed store forwarding on every new voxel.
+  VoxelSum& sum = sums.emplace_back();  // zeros
+  sum.key = key;
+  sum.first_pixel = pixel;
+  return voxel;
 }
 
 inline void Preprocessor::VoxelTable::prefetch(uint64_t key) const {
@@ -124,21 +133,9 @@ inline void Preprocessor::VoxelTable::prefetch(uint64_t key) const {
 #endif
 }
 
-uint32_t Preprocessor::VoxelTable::insert(uint64_t key, uint32_t pixel, size_t slot) {
-  if (2 * (sums.size() + 1) > slots_.size()) {
-    grow();
-    const size_t mask = slots_.size() - 1;
-    slot = voxel_key::hash(key) & mask;
-    while (slots_[slot].frame == frame_) slot = (slot + 1) & mask;
-  }
-  const uint32_t voxel = static_cast<uint32_t>(sums.size());
-  slots_[slot] = {key, voxel, frame_};
-  // Written in place, field by field: a VoxelSum built on the stack and copied in was read back
-  // across its narrower stores, a failed store forwarding on every new voxel.
-  VoxelSum& sum = sums.emplace_back();  // zeros
-  sum.key = key;
-  sum.first_pixel = pixel;
-  return voxel;
+uint32_t Preprocessor::VoxelTable::insertGrowing(uint64_t key, uint32_t pixel) {
+  grow();  // at least twice the slots: voxelOf's probe finds an empty one, and room for more
+  return voxelOf(key, pixel);
 }
 
 size_t Preprocessor::VoxelTable::bytes() const {
