@@ -53,6 +53,15 @@ constexpr uint64_t kSideBit = uint64_t{1} << (3 * voxel_key::kAxisBits - 1);
 // preprocess alone, speed4, one thread: 4, 6, 8 and 12 pixels about as fast, 2 and 16+ slower).
 constexpr int kPrefetchAhead = 8;
 
+// The voxel table's hash: one multiply by 2^64 / golden ratio, its upper half folded onto the
+// lower bits, which the table's mask keeps. Cheaper than voxel_key::hash, which most new voxels
+// computed twice (the prefetch, the lookup), with no more probes: preprocess alone, speed4, one
+// thread, 4.30 -> 4.04 ms (fastest of 200 frames); the 45 OSD scenes 2.5 % faster.
+inline uint64_t slotHash(uint64_t key) {
+  const uint64_t product = key * 0x9e3779b97f4a7c15ull;
+  return product ^ product >> 32;
+}
+
 inline size_t sideOf(uint64_t key) { return key >> (3 * voxel_key::kAxisBits - 1) & 1; }
 
 // The first of keys[from, end) that is neither kEmpty nor on the side whose key bit is `side`
@@ -95,7 +104,7 @@ void Preprocessor::VoxelTable::grow() {
   slots_.assign(capacity, Slot{voxel_key::kEmpty, 0, 0});
   for (uint32_t voxel = 0; voxel < sums.size(); ++voxel) {
     const uint64_t key = sums[voxel].key;
-    size_t slot = voxel_key::hash(key) & (capacity - 1);
+    size_t slot = slotHash(key) & (capacity - 1);
     while (slots_[slot].frame == frame_) slot = (slot + 1) & (capacity - 1);
     slots_[slot] = {key, voxel, frame_};
   }
@@ -107,7 +116,7 @@ void Preprocessor::VoxelTable::grow() {
 inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) {
   // At most half full.
   const size_t mask = slots_.size() - 1;
-  size_t slot = voxel_key::hash(key) & mask;
+  size_t slot = slotHash(key) & mask;
   while (slots_[slot].frame == frame_) {
     if (slots_[slot].key == key) return slots_[slot].voxel;
     slot = (slot + 1) & mask;
@@ -124,7 +133,7 @@ inline uint32_t Preprocessor::VoxelTable::voxelOf(uint64_t key, uint32_t pixel) 
 }
 
 inline void Preprocessor::VoxelTable::prefetch(uint64_t key) const {
-  const Slot& slot = slots_[voxel_key::hash(key) & (slots_.size() - 1)];
+  const Slot& slot = slots_[slotHash(key) & (slots_.size() - 1)];
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
   // GCC 12 at -O1 and above drops this loop's __builtin_prefetch.
   asm volatile("prefetcht0 %0" : : "m"(slot));
