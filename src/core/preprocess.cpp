@@ -319,7 +319,7 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
           if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
         }
       }
-      if (!with_grid) {
+      if (!with_grid || !kept_lanes) {  // no voxel grid, or no voxel: no voxel coordinates
         for (int lane = 0; lane < 4; ++lane) {
           keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
         }
