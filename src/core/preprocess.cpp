@@ -55,8 +55,11 @@ constexpr int kPrefetchAhead = 8;
 
 // The voxel table's hash: one multiply by 2^64 / golden ratio, its upper half folded onto the
 // lower bits, which the table's mask keeps. Cheaper than voxel_key::hash, which most new voxels
-// computed twice (the prefetch, the lookup), with no more probes: preprocess alone, speed4, one
-// thread, 4.30 -> 4.04 ms (fastest of 200 frames); the 45 OSD scenes 2.5 % faster.
+// computed twice (the prefetch, the lookup), for a few more probes (speed4's left side, 53k
+// voxels: 0.39 past the home slot at 40 % full, 0.85 at 50 %; splitmix 0.35 and 0.51):
+// preprocess alone, speed4, one thread, 4.30 -> 4.04 ms (fastest of 200 frames); the 45 OSD
+// scenes 2.5 % faster. (The product's upper bits alone, shifted by the table's size: 0.37 and
+// 0.43 probes, fewer instructions, but 0.1 ms slower.)
 inline uint64_t slotHash(uint64_t key) {
   const uint64_t product = key * 0x9e3779b97f4a7c15ull;
   return product ^ product >> 32;
