@@ -51,8 +51,8 @@ class Preprocessor {
       uint32_t voxel;  // index into sums
       uint32_t frame;  // the slot is in use when it is the table's frame_
     };
-    // A new voxel at `slot`, the empty slot its key's probe ended on.
-    uint32_t insert(uint64_t key, uint32_t pixel, size_t slot);
+    // A new voxel, after the table grew: voxelOf's insert would make it more than half full.
+    uint32_t insertGrowing(uint64_t key, uint32_t pixel);
     void grow();
     std::vector<Slot> slots_;
     // Counts clear()s: a frame's clear only moves it on, not 2-4 MB of slots written again.
