@@ -336,7 +336,14 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
           if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
         }
       }
-      if (!with_grid || !kept_lanes) {  // no voxel grid, or no voxel: no voxel coordinates
+      if (!kept_lanes) {  // all four dropped: kEmpty (all bits) without voxel coordinates
+        static_assert(voxel_key::kEmpty == ~uint64_t{0}, "kEmpty has all bits set");
+        const __m128i empty = _mm_set1_epi32(-1);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(keys + u), empty);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(keys + u + 2), empty);
+        continue;
+      }
+      if (!with_grid) {
         for (int lane = 0; lane < 4; ++lane) {
           keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
         }
