@@ -306,23 +306,44 @@ void Preprocessor::keyRows(const pcl::PointCloud<PointT>& in, int width, bool dr
                      sz = _mm_sub_ps(z, eye_zs);
         const __m128 sight_sq =
             _mm_add_ps(_mm_add_ps(_mm_mul_ps(sx, sx), _mm_mul_ps(sy, sy)), _mm_mul_ps(sz, sz));
-        const __m128 dx = _mm_sub_ps(qx, x), dy = _mm_sub_ps(qy, y), dz = _mm_sub_ps(qz, z);
-        const __m128 dot =
-            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, sx), _mm_mul_ps(dy, sy)), _mm_mul_ps(dz, sz));
-        const __m128 along = _mm_mul_ps(_mm_mul_ps(dot, dot), along_weights);
-        const __m128 across = _mm_mul_ps(
-            _mm_mul_ps(cot_sqs, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
-                                           _mm_mul_ps(dz, dz))),
-            sight_sq);
-        const __m128 left_finite = _mm_cmpeq_ps(_mm_sub_ps(qz, qz), zero);
-        int cleared = _mm_movemask_ps(_mm_and_ps(left_finite, _mm_cmple_ps(along, across)));
+        // The lanes whose neighbour q is finite and on their surface: onSurface's operations.
+        auto onSurfaceLanes = [&](__m128 qx, __m128 qy, __m128 qz) {
+          const __m128 dx = _mm_sub_ps(qx, x), dy = _mm_sub_ps(qy, y), dz = _mm_sub_ps(qz, z);
+          const __m128 dot =
+              _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, sx), _mm_mul_ps(dy, sy)), _mm_mul_ps(dz, sz));
+          const __m128 along = _mm_mul_ps(_mm_mul_ps(dot, dot), along_weights);
+          const __m128 across = _mm_mul_ps(
+              _mm_mul_ps(cot_sqs, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                                             _mm_mul_ps(dz, dz))),
+              sight_sq);
+          const __m128 finite = _mm_cmpeq_ps(_mm_sub_ps(qz, qz), zero);
+          return _mm_movemask_ps(_mm_and_ps(finite, _mm_cmple_ps(along, across)));
+        };
+        int cleared = onSurfaceLanes(qx, qy, qz);
         if (u == 0) cleared &= ~1;  // the row's first pixel has no left neighbour
+        // The right neighbours (the scalar test's next), the next pixel of each lane, clear most
+        // of the rest: a point whose left neighbour lies across a depth edge.
+        if ((kept_lanes & ~cleared) && u + 4 < row_width) {
+          auto nextOf = [](__m128 value, float next) {  // value's lanes 1-3, then next
+            const __m128 last = _mm_shuffle_ps(value, _mm_set1_ps(next), _MM_SHUFFLE(0, 0, 3, 3));
+            return _mm_shuffle_ps(value, last, _MM_SHUFFLE(2, 0, 2, 1));
+          };
+          const PointT& next = row[u + 4];
+          cleared |= onSurfaceLanes(nextOf(x, next.x), nextOf(y, next.y), nextOf(z, next.z));
+        }
         for (int lanes = kept_lanes & ~cleared; lanes; lanes &= lanes - 1) {
           const int lane = __builtin_ctz(static_cast<unsigned>(lanes));
           if (flying(row, u + lane, v)) kept_lanes &= ~(1 << lane);
         }
       }
-      if (!with_grid || !kept_lanes) {  // no voxel grid, or no voxel: no voxel coordinates
+      if (!kept_lanes) {  // all four dropped: kEmpty (all bits) without voxel coordinates
+        static_assert(voxel_key::kEmpty == ~uint64_t{0}, "kEmpty has all bits set");
+        const __m128i empty = _mm_set1_epi32(-1);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(keys + u), empty);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(keys + u + 2), empty);
+        continue;
+      }
+      if (!with_grid) {
         for (int lane = 0; lane < 4; ++lane) {
           keys[u + lane] = kept_lanes >> lane & 1 ? 0 : voxel_key::kEmpty;
         }

@@ -364,6 +364,73 @@ TEST(Preprocess, FlyingPixelsAtDepthEdgesAreDropped) {
   EXPECT_EQ(out.size(), in.size());
 }
 
+// The flying pixel test point for point against its definition (kept when a finite image
+// neighbour lies off its line of sight by more than the angle, or when it has no finite
+// neighbour), with the float operations in the filter's order: stripes three pixels wide at two
+// depths (a stripe's first pixel is cleared by its right neighbour, not its left), lone pixels
+// between the depths, holes, and rows of 45 pixels (not four at a time to the end).
+TEST(Preprocess, FlyingPixelsAreTheDefinitionsPixelForPixel) {
+  const int width = 45, height = 12;
+  pcl::PointCloud<pcl::PointXYZ> in(width, height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      float z = 1.0f + 0.4f * static_cast<float>((u / 3 + v) % 2);
+      if ((u + 5 * v) % 11 == 0) z = 1.17f;  // between the depths
+      pcl::PointXYZ& p = in.at(u, v);
+      p = pcl::PointXYZ((u - 22) / 500.0f * z, (v - 6) / 500.0f * z, z);
+      if ((7 * u + 3 * v) % 13 == 0) p.z = kNaN;
+    }
+  }
+  in.sensor_origin_.head<3>() = Eigen::Vector3f(0.01f, -0.02f, 0.005f);
+  const PreprocessParams params{0.0f, 10.0f, 10.0f};  // no voxel grid: every kept point comes out
+  const float cot = 1.0f / std::tan(degToRad(params.flying_pixel_angle_deg));
+  const float cot_sq = cot * cot, along_weight = 1.0f + cot_sq;
+  const Eigen::Vector3f eye = in.sensor_origin_.head<3>();
+  std::vector<pcl::PointXYZ> kept;
+  size_t dropped = 0, kept_across_left_edge = 0;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const pcl::PointXYZ& p = in.at(u, v);
+      if (!std::isfinite(p.z)) continue;
+      const float sx = p.x - eye.x(), sy = p.y - eye.y(), sz = p.z - eye.z();
+      const float sight_sq = sx * sx + sy * sy + sz * sz;
+      auto onSurface = [&](const pcl::PointXYZ& q) {
+        const float dx = q.x - p.x, dy = q.y - p.y, dz = q.z - p.z;
+        const float dot = dx * sx + dy * sy + dz * sz;
+        return dot * dot * along_weight <= cot_sq * (dx * dx + dy * dy + dz * dz) * sight_sq;
+      };
+      bool any_neighbour = false, surface = false;
+      for (int dv = -1; dv <= 1; ++dv) {
+        for (int du = -1; du <= 1; ++du) {
+          const int nu = u + du, nv = v + dv;
+          if ((du == 0 && dv == 0) || nu < 0 || nu >= width || nv < 0 || nv >= height) continue;
+          const pcl::PointXYZ& q = in.at(nu, nv);
+          if (!std::isfinite(q.z)) continue;
+          any_neighbour = true;
+          surface = surface || onSurface(q);
+        }
+      }
+      if (any_neighbour && !surface) {
+        ++dropped;
+        continue;
+      }
+      kept.push_back(p);
+      const bool left = u > 0 && std::isfinite(in.at(u - 1, v).z);
+      if (left && !onSurface(in.at(u - 1, v))) ++kept_across_left_edge;
+    }
+  }
+  EXPECT_GT(dropped, 20u);
+  EXPECT_GT(kept_across_left_edge, 50u);
+  Cloud out;
+  Preprocessor(params).apply(in, out);
+  ASSERT_EQ(out.size(), kept.size());
+  for (size_t i = 0; i < kept.size(); ++i) {
+    EXPECT_EQ(out[i].x, kept[i].x) << "point " << i;
+    EXPECT_EQ(out[i].y, kept[i].y) << "point " << i;
+    EXPECT_EQ(out[i].z, kept[i].z) << "point " << i;
+  }
+}
+
 // Issue 16, finding 5: one 5-million-point frame kept the manager at 490-600 MB for good. The
 // buffers a burst left behind are given back on the next normal frame; results stay exact.
 TEST(Preprocess, BuffersShrinkAfterAFrameFarAboveTheUsualSize) {
