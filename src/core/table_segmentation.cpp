@@ -1637,16 +1637,27 @@ __attribute__((target("avx2"))) RootSum rootSumAvx2(const float* squared, size_t
   __m256 nonzero8 = _mm256_set1_ps(infinity);
   __m256d low = _mm256_setzero_pd(), high = _mm256_setzero_pd();
   const __m256 zero = _mm256_setzero_ps(), none = _mm256_set1_ps(infinity);
-  size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    const __m256 d = _mm256_loadu_ps(squared + j);
+  // `counted`: the lanes whose roots are added (the others' values were added before).
+  auto add = [&](__m256 d, __m256 counted) __attribute__((target("avx2"))) {
     smallest8 = _mm256_min_ps(smallest8, d);
     largest8 = _mm256_max_ps(largest8, d);
     nonzero8 =
         _mm256_min_ps(nonzero8, _mm256_blendv_ps(none, d, _mm256_cmp_ps(d, zero, _CMP_GT_OQ)));
-    const __m256 root = _mm256_sqrt_ps(d);
+    const __m256 root = _mm256_and_ps(_mm256_sqrt_ps(d), counted);
     low = _mm256_add_pd(low, _mm256_cvtps_pd(_mm256_castps256_ps128(root)));
     high = _mm256_add_pd(high, _mm256_cvtps_pd(_mm256_extractf128_ps(root, 1)));
+  };
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  size_t j = 0;
+  for (; j + 8 <= n; j += 8) add(_mm256_loadu_ps(squared + j), all);
+  if (j < n && n >= 8) {
+    // The last eight values, ending at n: those seen already count again for the bounds (no
+    // change) and add a root of 0 to the sum (no change either; in the order of a sum that
+    // sumOfDistancesButTheNearest uses only when every order gives it exactly).
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256i first_new = _mm256_set1_epi32(static_cast<int>(j + 8 - n) - 1);
+    add(_mm256_loadu_ps(squared + n - 8), _mm256_castsi256_ps(_mm256_cmpgt_epi32(lane, first_new)));
+    j = n;
   }
   alignas(32) float lanes[3][8];
   alignas(32) double sums[2][4];
