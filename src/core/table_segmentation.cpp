@@ -302,19 +302,21 @@ void bandMasks(const Point* points, size_t blocks, const PlaneBand& band, uint8_
 #endif
 }
 
-// Calls visitBlock(first, masks, blocks) for the cloud's points from `first` on, blocks of eight
+// The most blocks of eight points forEachBandMask tests at a time.
+constexpr size_t kMaskBlocks = 128;
+
+// Calls visitBlocks(first, masks, blocks) for the cloud's points from `first` on, blocks of eight
 // at a time, with their bandMasks, up to 1024 points a call (so that a visit that stops early
 // leaves few computed in vain), then visitRest(i) for each of the last cloud.size() % 8 points
 // in the band, in order, while both return true.
 template <typename VisitBlocks, typename VisitRest>
 void forEachBandMask(const Cloud& cloud, const PlaneBand& band, VisitBlocks&& visitBlocks,
                      VisitRest&& visitRest) {
-  constexpr size_t kBlocks = 128;
-  uint8_t masks[kBlocks];
+  uint8_t masks[kMaskBlocks];
   const size_t n = cloud.size();
   size_t i = 0;
   while (n - i >= 8) {
-    const size_t blocks = std::min(kBlocks, (n - i) / 8);
+    const size_t blocks = std::min(kMaskBlocks, (n - i) / 8);
     bandMasks(cloud.points.data() + i, blocks, band, masks);
     if (!visitBlocks(i, masks, blocks)) return;
     i += 8 * blocks;
@@ -366,7 +368,7 @@ void collectInBand(const Cloud& cloud, const Plane& plane, float half_width,
       return std::abs(other.signedDistance(p)) <= threshold;
     });
   };
-  uint8_t near_others[128];
+  uint8_t near_others[kMaskBlocks];
   forEachBandMask(
       cloud, PlaneBand{plane, -half_width, half_width, true},
       [&](size_t first, uint8_t* masks, size_t blocks) {
