@@ -302,19 +302,21 @@ void bandMasks(const Point* points, size_t blocks, const PlaneBand& band, uint8_
 #endif
 }
 
-// Calls visitBlock(first, masks, blocks) for the cloud's points from `first` on, blocks of eight
+// The most blocks of eight points forEachBandMask tests at a time.
+constexpr size_t kMaskBlocks = 128;
+
+// Calls visitBlocks(first, masks, blocks) for the cloud's points from `first` on, blocks of eight
 // at a time, with their bandMasks, up to 1024 points a call (so that a visit that stops early
 // leaves few computed in vain), then visitRest(i) for each of the last cloud.size() % 8 points
 // in the band, in order, while both return true.
 template <typename VisitBlocks, typename VisitRest>
 void forEachBandMask(const Cloud& cloud, const PlaneBand& band, VisitBlocks&& visitBlocks,
                      VisitRest&& visitRest) {
-  constexpr size_t kBlocks = 128;
-  uint8_t masks[kBlocks];
+  uint8_t masks[kMaskBlocks];
   const size_t n = cloud.size();
   size_t i = 0;
   while (n - i >= 8) {
-    const size_t blocks = std::min(kBlocks, (n - i) / 8);
+    const size_t blocks = std::min(kMaskBlocks, (n - i) / 8);
     bandMasks(cloud.points.data() + i, blocks, band, masks);
     if (!visitBlocks(i, masks, blocks)) return;
     i += 8 * blocks;
@@ -366,7 +368,7 @@ void collectInBand(const Cloud& cloud, const Plane& plane, float half_width,
       return std::abs(other.signedDistance(p)) <= threshold;
     });
   };
-  uint8_t near_others[128];
+  uint8_t near_others[kMaskBlocks];
   forEachBandMask(
       cloud, PlaneBand{plane, -half_width, half_width, true},
       [&](size_t first, uint8_t* masks, size_t blocks) {
@@ -437,6 +439,17 @@ class ScoringPoints {
   std::vector<Column> columns_;
 };
 
+#ifdef __SSE__
+// x, y and z of the points indices[0 .. 3] of `cloud` as lanes.
+inline void coordinatesOfIndexedFour(const Cloud& cloud, const int* indices, Float4& x, Float4& y,
+                                     Float4& z) {
+  __m128 a = _mm_loadu_ps(&cloud[indices[0]].x), b = _mm_loadu_ps(&cloud[indices[1]].x),
+         c = _mm_loadu_ps(&cloud[indices[2]].x), w = _mm_loadu_ps(&cloud[indices[3]].x);
+  _MM_TRANSPOSE4_PS(a, b, c, w);
+  x = (Float4)a, y = (Float4)b, z = (Float4)c;
+}
+#endif
+
 // The surface of a plane: its inliers' densest kSurfaceSlab, the plane refined on the points
 // within it and its inliers (within `threshold`) collected again; `collect(plane, half_width,
 // indices)` gives the points within half_width of a plane. Objects standing on the surface add
@@ -447,9 +460,21 @@ class ScoringPoints {
 template <typename Collect>
 bool refitOnDensestSlab(const Cloud& cloud, const NormalConstraint& constraint, float threshold,
                         const Collect& collect, Plane& plane, std::vector<int>& inliers) {
-  std::vector<float> distances;
-  distances.reserve(inliers.size());
-  for (int i : inliers) distances.push_back(plane.signedDistance(cloud[i].getVector3fMap()));
+  std::vector<float> distances(inliers.size());
+  size_t k = 0;
+#ifdef __SSE__
+  // Four at a time, each lane with signedDistance's float operations in its order.
+  const Float4 nx = broadcast(plane.normal.x()), ny = broadcast(plane.normal.y()),
+               nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
+  for (; k + 4 <= inliers.size(); k += 4) {
+    Float4 x, y, z;
+    coordinatesOfIndexedFour(cloud, &inliers[k], x, y, z);
+    const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
+    std::memcpy(&distances[k], &distance, sizeof distance);
+  }
+#endif
+  for (; k < inliers.size(); ++k)
+    distances[k] = plane.signedDistance(cloud[inliers[k]].getVector3fMap());
   const DensestSlab slab_of_most = densestSlab(distances, kSurfaceSlab);
   if (slab_of_most.count < 3) return false;
   Plane shifted = plane;
@@ -562,10 +587,8 @@ void buildHull(const Cloud& cloud, Candidate& candidate,
     const Float4 ux = broadcast(u.x()), uy = broadcast(u.y()), uz = broadcast(u.z());
     const Float4 vx = broadcast(v.x()), vy = broadcast(v.y()), vz = broadcast(v.z());
     for (; k + 4 <= inliers.size(); k += 4) {
-      __m128 a = _mm_loadu_ps(&cloud[inliers[k]].x), b = _mm_loadu_ps(&cloud[inliers[k + 1]].x),
-             c = _mm_loadu_ps(&cloud[inliers[k + 2]].x), w = _mm_loadu_ps(&cloud[inliers[k + 3]].x);
-      _MM_TRANSPOSE4_PS(a, b, c, w);
-      const Float4 x = (Float4)a, y = (Float4)b, z = (Float4)c;
+      Float4 x, y, z;
+      coordinatesOfIndexedFour(cloud, &inliers[k], x, y, z);
       const Float4 along_u = ux * x + (uy * y + uz * z), along_v = vx * x + (vy * y + vz * z);
       for (int lane = 0; lane < 4; ++lane) keep(Eigen::Vector2f(along_u[lane], along_v[lane]));
     }
@@ -1616,16 +1639,27 @@ __attribute__((target("avx2"))) RootSum rootSumAvx2(const float* squared, size_t
   __m256 nonzero8 = _mm256_set1_ps(infinity);
   __m256d low = _mm256_setzero_pd(), high = _mm256_setzero_pd();
   const __m256 zero = _mm256_setzero_ps(), none = _mm256_set1_ps(infinity);
-  size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    const __m256 d = _mm256_loadu_ps(squared + j);
+  // `counted`: the lanes whose roots are added (the others' values were added before).
+  auto add = [&](__m256 d, __m256 counted) __attribute__((target("avx2"))) {
     smallest8 = _mm256_min_ps(smallest8, d);
     largest8 = _mm256_max_ps(largest8, d);
     nonzero8 =
         _mm256_min_ps(nonzero8, _mm256_blendv_ps(none, d, _mm256_cmp_ps(d, zero, _CMP_GT_OQ)));
-    const __m256 root = _mm256_sqrt_ps(d);
+    const __m256 root = _mm256_and_ps(_mm256_sqrt_ps(d), counted);
     low = _mm256_add_pd(low, _mm256_cvtps_pd(_mm256_castps256_ps128(root)));
     high = _mm256_add_pd(high, _mm256_cvtps_pd(_mm256_extractf128_ps(root, 1)));
+  };
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  size_t j = 0;
+  for (; j + 8 <= n; j += 8) add(_mm256_loadu_ps(squared + j), all);
+  if (j < n && n >= 8) {
+    // The last eight values, ending at n: those seen already count again for the bounds (no
+    // change) and add a root of 0 to the sum (no change either; in the order of a sum that
+    // sumOfDistancesButTheNearest uses only when every order gives it exactly).
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256i first_new = _mm256_set1_epi32(static_cast<int>(j + 8 - n) - 1);
+    add(_mm256_loadu_ps(squared + n - 8), _mm256_castsi256_ps(_mm256_cmpgt_epi32(lane, first_new)));
+    j = n;
   }
   alignas(32) float lanes[3][8];
   alignas(32) double sums[2][4];
@@ -1791,9 +1825,12 @@ bool tableIsTheDominantLevelPlane(const Cloud& cloud, const TableResult& table) 
       !(-table.plane.normal.y() >= kMinImageUpCosine)) {
     return false;
   }
+  // More than half of all points holds more than half of the finite ones: no count needed.
+  const size_t twice_the_inliers = 2 * static_cast<size_t>(table.inliers);
+  if (twice_the_inliers > cloud.size()) return true;
   size_t finite = 0;
   for (const auto& p : cloud.points) finite += p.getVector3fMap().allFinite();
-  return 2 * static_cast<size_t>(table.inliers) > finite;
+  return twice_the_inliers > finite;
 }
 
 }  // namespace tabletop_shapes

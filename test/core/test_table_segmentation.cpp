@@ -441,6 +441,28 @@ TEST(TableSegmenter, ObjectPointsKeepTheSensorOrigin) {
   EXPECT_TRUE(result.object_points->sensor_origin_.isApprox(scene.cloud->sensor_origin_));
 }
 
+TEST(TableSegmenter, TableIsTheDominantLevelPlaneCountsOnlyFinitePoints) {
+  // 10 points, the camera at the origin 1 m above the plane y = 1 (optical frame: y down, up is
+  // -y in the image).
+  Cloud cloud;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int i = 0; i < 10; ++i) cloud.push_back(Point(0.1f * i, 1.0f, 1.0f));
+  TableResult table;
+  table.found = true;
+  table.plane = Plane{Eigen::Vector3f(0.0f, -1.0f, 0.0f), 1.0f};
+  table.inliers = 6;  // more than half of all points
+  EXPECT_TRUE(tableIsTheDominantLevelPlane(cloud, table));
+  table.inliers = 5;  // half of them: not more
+  EXPECT_FALSE(tableIsTheDominantLevelPlane(cloud, table));
+  for (int i = 0; i < 2; ++i) cloud[i].x = nan;  // 5 of the 8 finite ones
+  EXPECT_TRUE(tableIsTheDominantLevelPlane(cloud, table));
+  table.inliers = 4;  // half of the finite ones
+  EXPECT_FALSE(tableIsTheDominantLevelPlane(cloud, table));
+  table.inliers = 9;
+  table.plane = Plane{Eigen::Vector3f(0.0f, 1.0f, 0.0f), -1.0f};  // seen from below
+  EXPECT_FALSE(tableIsTheDominantLevelPlane(cloud, table));
+}
+
 TEST(TableSegmenter, EstimateUpFindsTheTiltedTable) {
   const SyntheticScene scene = makeScene(true, true);
   Eigen::Vector3f up;
