@@ -17,7 +17,7 @@ struct DensestSlab {
 // What sorting `values` ascending (-0 before +0) and taking the longest run [begin, end) with
 // values[end - 1] <= values[begin] + width (the first such run on ties) gives: count = end -
 // begin, low = values[begin], high = values[end - 1]; {0, 0, 0} for no values. The same floats,
-// without sorting them all: the values are counted in bins of width / 16; only the bins that can
+// without sorting them all: the values are counted in bins of width / 256; only the bins that can
 // start a run as long as the longest one some bin surely starts are sorted and searched.
 DensestSlab densestSlab(const std::vector<float>& values, float width);
 
