@@ -439,17 +439,6 @@ class ScoringPoints {
   std::vector<Column> columns_;
 };
 
-#ifdef __SSE__
-// x, y and z of the points indices[0 .. 3] of `cloud` as lanes.
-inline void coordinatesOfIndexedFour(const Cloud& cloud, const int* indices, Float4& x, Float4& y,
-                                     Float4& z) {
-  __m128 a = _mm_loadu_ps(&cloud[indices[0]].x), b = _mm_loadu_ps(&cloud[indices[1]].x),
-         c = _mm_loadu_ps(&cloud[indices[2]].x), w = _mm_loadu_ps(&cloud[indices[3]].x);
-  _MM_TRANSPOSE4_PS(a, b, c, w);
-  x = (Float4)a, y = (Float4)b, z = (Float4)c;
-}
-#endif
-
 // The surface of a plane: its inliers' densest kSurfaceSlab, the plane refined on the points
 // within it and its inliers (within `threshold`) collected again; `collect(plane, half_width,
 // indices)` gives the points within half_width of a plane. Objects standing on the surface add
@@ -468,7 +457,7 @@ bool refitOnDensestSlab(const Cloud& cloud, const NormalConstraint& constraint, 
                nz = broadcast(plane.normal.z()), d = broadcast(plane.d);
   for (; k + 4 <= inliers.size(); k += 4) {
     Float4 x, y, z;
-    coordinatesOfIndexedFour(cloud, &inliers[k], x, y, z);
+    coordinatesOfFour(cloud.points.data(), &inliers[k], x, y, z);
     const Float4 distance = (nx * x + (ny * y + nz * z)) + d;
     std::memcpy(&distances[k], &distance, sizeof distance);
   }
@@ -588,7 +577,7 @@ void buildHull(const Cloud& cloud, Candidate& candidate,
     const Float4 vx = broadcast(v.x()), vy = broadcast(v.y()), vz = broadcast(v.z());
     for (; k + 4 <= inliers.size(); k += 4) {
       Float4 x, y, z;
-      coordinatesOfIndexedFour(cloud, &inliers[k], x, y, z);
+      coordinatesOfFour(cloud.points.data(), &inliers[k], x, y, z);
       const Float4 along_u = ux * x + (uy * y + uz * z), along_v = vx * x + (vy * y + vz * z);
       for (int lane = 0; lane < 4; ++lane) keep(Eigen::Vector2f(along_u[lane], along_v[lane]));
     }

@@ -29,14 +29,29 @@ inline unsigned lanesOf(Int4 mask) {
 }
 
 #ifdef __SSE__
-// x, y and z of four consecutive PCL points (each starts with x y z and a fourth float) as
-// lanes: the loads and the transpose the point passes share (preprocess, table_segmentation).
+// x, y and z of four PCL points (each starts with x y z and a fourth float) as lanes: the loads
+// and the transpose the point passes share (preprocess, table_segmentation).
 template <typename PointT>
-inline void coordinatesOfFour(const PointT* points, Float4& x, Float4& y, Float4& z) {
-  __m128 a = _mm_loadu_ps(&points[0].x), b = _mm_loadu_ps(&points[1].x),
-         c = _mm_loadu_ps(&points[2].x), w = _mm_loadu_ps(&points[3].x);
+inline void coordinatesOfFour(const PointT& p0, const PointT& p1, const PointT& p2,
+                              const PointT& p3, Float4& x, Float4& y, Float4& z) {
+  __m128 a = _mm_loadu_ps(&p0.x), b = _mm_loadu_ps(&p1.x), c = _mm_loadu_ps(&p2.x),
+         w = _mm_loadu_ps(&p3.x);
   _MM_TRANSPOSE4_PS(a, b, c, w);
   x = (Float4)a, y = (Float4)b, z = (Float4)c;
+}
+
+// The same for four consecutive points.
+template <typename PointT>
+inline void coordinatesOfFour(const PointT* points, Float4& x, Float4& y, Float4& z) {
+  coordinatesOfFour(points[0], points[1], points[2], points[3], x, y, z);
+}
+
+// The same for the points indices[0 .. 3] of `points`.
+template <typename PointT>
+inline void coordinatesOfFour(const PointT* points, const int* indices, Float4& x, Float4& y,
+                              Float4& z) {
+  coordinatesOfFour(points[indices[0]], points[indices[1]], points[indices[2]], points[indices[3]],
+                    x, y, z);
 }
 #endif
 
