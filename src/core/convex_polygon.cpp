@@ -2,16 +2,13 @@
 
 #include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/float4.h"
+#include "tabletop_shapes/core/float8.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <utility>
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
 
 namespace tabletop_shapes {
 
@@ -54,27 +51,19 @@ std::vector<Eigen::Vector2f> monotoneChain(std::vector<Eigen::Vector2f> points) 
   return hull;
 }
 
-// Lanes of eight floats are passed only within AVX2 functions and always-inlined ones: GCC's note
-// that passing them without AVX changes the ABI does not apply.
-#pragma GCC diagnostic ignored "-Wpsabi"
-
-// The lanes of kLanes points: their types, and the bits of a comparison's lanes (bit i: lane i).
+// The lane types of kLanes points (a comparison's lanes as bits: lanesOf).
 template <int kLanes>
 struct LaneTypes;
 template <>
 struct LaneTypes<4> {
   using Floats = Float4;
   using Ints = Int4;
-  static unsigned bits(Int4 mask) { return lanesOf(mask); }
 };
-#if defined(__x86_64__) && defined(__GNUC__)
+#ifdef TABLETOP_SHAPES_EIGHT_LANES
 template <>
 struct LaneTypes<8> {
-  using Floats = float __attribute__((vector_size(32)));
-  using Ints = int __attribute__((vector_size(32)));
-  __attribute__((target("avx2"))) static unsigned bits(Ints mask) {
-    return static_cast<unsigned>(_mm256_movemask_ps((__m256)mask));
-  }
+  using Floats = Float8;
+  using Ints = Int8;
 };
 #endif
 
@@ -214,7 +203,7 @@ template <int kLanes>
     for (int edge = 0; edge < 8; ++edge) {
       outside |= edge_nx[edge] * x + edge_ny[edge] * y <= edge_offset[edge];
     }
-    const unsigned kept_lanes = LaneTypes<kLanes>::bits(outside);
+    const unsigned kept_lanes = lanesOf(outside);
     for (int lane = 0; lane < kLanes; ++lane) {
       const Eigen::Vector2f p = points[k + lane];  // read before any write at or past it
       points[kept] = p;

@@ -1,23 +1,15 @@
 #include "tabletop_shapes/core/plane_support.h"
 
 #include "tabletop_shapes/core/cpu_features.h"
+#include "tabletop_shapes/core/float8.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define TABLETOP_SHAPES_EIGHT_LANES 1
-#endif
-
 namespace tabletop_shapes {
 namespace {
-
-// Lanes of eight floats are passed only between always-inlined functions and within AVX2 ones:
-// GCC's note that passing them without AVX changes the ABI does not apply.
-#pragma GCC diagnostic ignored "-Wpsabi"
 
 // The integer lanes (comparison masks) of as many lanes as Floats.
 template <typename Floats>
@@ -123,15 +115,12 @@ template <typename Floats, typename Root>
 }
 
 #ifdef TABLETOP_SHAPES_EIGHT_LANES
-using Float8 = float __attribute__((vector_size(32)));
 template <>
 struct IntLanesOf<Float8> {
-  using Type = int __attribute__((vector_size(32)));
+  using Type = Int8;
 };
 struct RootOfEight {
-  __attribute__((target("avx2"))) static Float8 of(Float8 value) {
-    return (Float8)_mm256_sqrt_ps((__m256)value);  // correctly rounded, as std::sqrt
-  }
+  __attribute__((target("avx2"))) static Float8 of(Float8 value) { return squareRoot(value); }
   // vminps(a, b) is a < b ? a : b, the second operand where either is NaN: one instruction
   // where GCC makes the conditional a comparison and a blend.
   __attribute__((target("avx2"))) static Float8 minOfOneAnd(Float8 cosine) {

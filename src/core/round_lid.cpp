@@ -3,6 +3,7 @@
 #include "tabletop_shapes/core/cylinder_fit.h"
 #include "tabletop_shapes/core/cpu_features.h"
 #include "tabletop_shapes/core/float4.h"
+#include "tabletop_shapes/core/float8.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,10 +11,6 @@
 #include <limits>
 #include <utility>
 #include <vector>
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
 
 namespace tabletop_shapes {
 namespace {
@@ -106,10 +103,6 @@ struct PointBlocks {
   int count;
 };
 
-// Lanes of eight floats are passed only within AVX2 functions and always-inlined ones: GCC's note
-// that passing them without AVX changes the ABI does not apply.
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 // The lane operations pointsOnCircleAboveInLanes takes from its width: the lane types, the
 // square root (correctly rounded, as std::sqrt) and the number of lanes a comparison sets.
 struct FourLanes {
@@ -158,13 +151,11 @@ template <typename Lanes>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 struct EightLanes {
-  using Floats = float __attribute__((vector_size(32)));
-  using Ints = int __attribute__((vector_size(32)));
-  __attribute__((target("avx2"))) static Floats root(Floats value) {
-    return (Floats)_mm256_sqrt_ps((__m256)value);
-  }
-  __attribute__((target("avx2,popcnt"))) static int countSet(Ints mask) {
-    return __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps((__m256)mask)));
+  using Floats = Float8;
+  using Ints = Int8;
+  __attribute__((target("avx2"))) static Float8 root(Float8 value) { return squareRoot(value); }
+  __attribute__((target("avx2,popcnt"))) static int countSet(Int8 mask) {
+    return __builtin_popcount(lanesOf(mask));
   }
 };
 
